@@ -1,0 +1,102 @@
+#include <boost/test/unit_test.hpp>
+#include <filesystem>
+#include <fstream>
+
+#include "data/csv.hpp"
+#include "data/error.hpp"
+#include "data/output.hpp"
+
+namespace d = stiffid::data;
+
+namespace {
+// Expects parse + trial_from_csv to throw InputError whose message contains every fragment.
+void expect_error(const std::string& text, const std::vector<std::string>& fragments,
+                  const d::TrialCsvOptions& options = {}) {
+  try {
+    d::trial_from_csv(d::parse_csv(text, "trial.csv"), options);
+    BOOST_ERROR("no error for:\n" << text);
+  } catch (const stiffid::InputError& e) {
+    for (const auto& f : fragments) {
+      BOOST_CHECK_MESSAGE(std::string(e.what()).find(f) != std::string::npos,
+                          "'" << e.what() << "' lacks '" << f << "'");
+    }
+  }
+}
+}  // namespace
+
+BOOST_AUTO_TEST_CASE(reads_channels_units_and_rate_from_time_column) {
+  const auto trial = d::trial_from_csv(
+      d::parse_csv("t,fx[N],x (m)\n0.0,1,2\n0.02,3,4\n0.04,5,6\n", "a.csv"));
+  BOOST_CHECK_CLOSE(trial.sample_rate_hz, 50.0, 1e-9);
+  BOOST_REQUIRE_EQUAL(trial.channel_count(), 2);
+  BOOST_CHECK_EQUAL(trial.names[0], "fx");
+  BOOST_CHECK_EQUAL(trial.units[0], "N");
+  BOOST_CHECK_EQUAL(trial.units[1], "m");
+  BOOST_CHECK_EQUAL(trial.samples(2, trial.index("x")), 6.0);
+}
+
+BOOST_AUTO_TEST_CASE(uses_given_rate_without_time_column) {
+  d::TrialCsvOptions options;
+  options.sample_rate_hz = 1000.0;
+  const auto trial = d::trial_from_csv(d::parse_csv("a,b\n1,2\n3,4\n", "b.csv"), options);
+  BOOST_CHECK_EQUAL(trial.sample_rate_hz, 1000.0);
+  expect_error("a,b\n1,2\n3,4\n", {"no time column", "--fs"});
+}
+
+BOOST_AUTO_TEST_CASE(bad_cells_are_named_by_file_line_and_column) {
+  expect_error("t,x\n0,1\n0.1,abc\n", {"trial.csv:3:2", "'x'", "abc"});
+  expect_error("t,x\n0,1\n0.1,nan\n", {"trial.csv:3:2", "finite"});
+  expect_error("t,x\n0,1\n0.1,inf\n", {"trial.csv:3:2", "finite"});
+  expect_error("t,x\n0,1\n0.1,\n", {"trial.csv:3:2"});
+}
+
+BOOST_AUTO_TEST_CASE(structural_errors_are_named) {
+  expect_error("t,x,x\n0,1,2\n", {"trial.csv:1:3", "duplicate column 'x'"});
+  expect_error("t,x\n0,1\n0.1,2,3\n", {"trial.csv:3", "ragged"});
+  expect_error("", {"empty file"});
+}
+
+BOOST_AUTO_TEST_CASE(time_must_increase_uniformly) {
+  expect_error("t,x\n0,1\n0.1,2\n0.1,3\n", {"trial.csv:4:1", "increase"});
+  expect_error("t,x\n0,1\n0.1,2\n0.25,3\n0.3,4\n", {"trial.csv:4:1", "non-uniform"});
+  // Jitter of 1e-4 step is within the default tolerance of 1e-3 step.
+  const auto trial = d::trial_from_csv(d::parse_csv("t,x\n0,1\n0.10001,2\n0.2,3\n", "ok.csv"));
+  BOOST_CHECK_CLOSE(trial.sample_rate_hz, 10.0, 1e-9);
+}
+
+BOOST_AUTO_TEST_CASE(missing_channel_and_file_are_named) {
+  const auto trial = d::trial_from_csv(d::parse_csv("t,x\n0,1\n0.1,2\n", "c.csv"));
+  BOOST_CHECK_EXCEPTION(trial.index("fy"), stiffid::InputError, [](const auto& e) {
+    return std::string(e.what()).find("c.csv: no channel 'fy'") != std::string::npos;
+  });
+  BOOST_CHECK_EXCEPTION(d::read_csv("/nonexistent/trial.csv"), stiffid::InputError,
+                        [](const auto& e) {
+                          return std::string(e.what()).find("/nonexistent/trial.csv") == 0;
+                        });
+  BOOST_CHECK_THROW(d::require_samples(trial, 256, "one Welch segment"), stiffid::InputError);
+}
+
+BOOST_AUTO_TEST_CASE(written_trial_reads_back_bit_exact) {
+  d::Trial trial;
+  trial.sample_rate_hz = 4000.0;
+  trial.add_channel("th1", "rad", Eigen::VectorXd::LinSpaced(9, 0.1, 0.9).array().sin());
+  trial.add_channel("fx", "N", Eigen::VectorXd::Random(9));
+  const auto path = (std::filesystem::temp_directory_path() / "stiffid_roundtrip.csv").string();
+  d::write_trial_csv(path, trial, true);
+  const auto back = d::read_trial_csv(path);
+  BOOST_CHECK_CLOSE(back.sample_rate_hz, 4000.0, 1e-9);
+  BOOST_CHECK(back.samples == trial.samples);
+  BOOST_CHECK_EQUAL(back.units[0], "rad");
+  std::filesystem::remove(path);
+}
+
+BOOST_AUTO_TEST_CASE(atomic_write_leaves_no_temporary_and_fails_cleanly) {
+  const auto dir = std::filesystem::temp_directory_path() / "stiffid_atomic";
+  std::filesystem::create_directories(dir);
+  d::write_file_atomically((dir / "out.json").string(), "{}\n");
+  int files = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir)) ++files;
+  BOOST_CHECK_EQUAL(files, 1);
+  BOOST_CHECK_THROW(d::write_file_atomically("/nonexistent/dir/out.json", "{}"), stiffid::InputError);
+  std::filesystem::remove_all(dir);
+}
