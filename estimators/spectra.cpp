@@ -1,0 +1,159 @@
+#include "estimators/spectra.hpp"
+
+#include <cmath>
+#include <sstream>
+
+#include "data/error.hpp"
+#include "estimators/fft.hpp"
+
+namespace stiffid::estimators {
+namespace {
+
+// Removes the trend of one segment in place (scipy.signal.detrend on a segment).
+void detrend_segment(Eigen::Ref<Eigen::VectorXd> x, Detrend detrend) {
+  if (detrend == Detrend::none) return;
+  const double n = static_cast<double>(x.size());
+  const double mean = x.mean();
+  x.array() -= mean;
+  if (detrend == Detrend::linear) {
+    // Least-squares line through (k, x_k): with centred abscissae t_k = k - (n - 1) / 2 the slope
+    // is sum t x / sum t^2 and sum t^2 = n (n^2 - 1) / 12.
+    const Eigen::ArrayXd t = Eigen::ArrayXd::LinSpaced(x.size(), -(n - 1) / 2, (n - 1) / 2);
+    const double slope = (t * x.array()).sum() / (n * (n * n - 1) / 12.0);
+    x.array() -= slope * t;
+  }
+}
+
+}  // namespace
+
+Detrend parse_detrend(const std::string& text, const std::string& flag) {
+  if (text == "none") return Detrend::none;
+  if (text == "constant") return Detrend::constant;
+  if (text == "linear") return Detrend::linear;
+  throw InputError(flag + ": bad detrend '" + text + "': expected constant, linear or none");
+}
+
+std::string to_string(Detrend detrend) {
+  switch (detrend) {
+    case Detrend::none:
+      return "none";
+    case Detrend::constant:
+      return "constant";
+    case Detrend::linear:
+      return "linear";
+  }
+  return "";
+}
+
+int overlap_samples(const WelchOptions& options) {
+  return static_cast<int>(std::floor(options.overlap * options.segment_length));
+}
+
+int fft_length(const WelchOptions& options) {
+  return options.fft_length == 0 ? options.segment_length : options.fft_length;
+}
+
+int welch_segment_count(int samples, const WelchOptions& options) {
+  const int noverlap = overlap_samples(options);
+  if (samples < options.segment_length) return 0;
+  return (samples - noverlap) / (options.segment_length - noverlap);
+}
+
+void validate(const WelchOptions& options) {
+  std::ostringstream msg;
+  if (options.segment_length < 2) {
+    msg << "Welch segment_length must be >= 2 samples, got " << options.segment_length;
+  } else if (options.fft_length != 0 && options.fft_length < options.segment_length) {
+    msg << "Welch fft_length must be 0 or >= segment_length (" << options.segment_length
+        << "), got " << options.fft_length;
+  } else if (!std::isfinite(options.overlap) || options.overlap < 0.0 || options.overlap >= 1.0 ||
+             overlap_samples(options) >= options.segment_length) {
+    msg << "Welch overlap must be a fraction in [0, 1), got " << options.overlap;
+  } else {
+    return;
+  }
+  throw InputError(msg.str());
+}
+
+double equivalent_independent_segments(int segments, const WelchOptions& options) {
+  if (segments <= 1) return segments;
+  const Eigen::VectorXd w = options.window.periodic(options.segment_length);
+  const int step = options.segment_length - overlap_samples(options);
+  const double energy = w.squaredNorm();
+  double sum = 0.0;
+  for (int m = 1; m < segments && m * step < options.segment_length; ++m) {
+    const int shared = options.segment_length - m * step;
+    const double rho = w.head(shared).dot(w.tail(shared)) / energy;
+    sum += (1.0 - static_cast<double>(m) / segments) * rho * rho;
+  }
+  return segments / (1.0 + 2.0 * sum);
+}
+
+CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signals,
+                                 double sample_rate_hz, const WelchOptions& options,
+                                 const std::string& source) {
+  validate(options);
+  if (!std::isfinite(sample_rate_hz) || sample_rate_hz <= 0.0) {
+    throw InputError(source + ": sample rate must be a positive number of Hz");
+  }
+  const int samples = static_cast<int>(signals.rows());
+  const int channels = static_cast<int>(signals.cols());
+  if (samples < options.segment_length) {
+    throw InputError(source + ": " + std::to_string(samples) + " samples, fewer than one Welch " +
+                     "segment of " + std::to_string(options.segment_length) + " samples needs");
+  }
+  const int length = options.segment_length;
+  const int nfft = fft_length(options);
+  const int step = length - overlap_samples(options);
+  const int segments = welch_segment_count(samples, options);
+  const Eigen::VectorXd window = options.window.periodic(length);
+
+  // Column c * segments + s holds segment s of channel c: detrended, windowed, zero padded.
+  Eigen::MatrixXd batch = Eigen::MatrixXd::Zero(nfft, static_cast<Eigen::Index>(segments) * channels);
+  Eigen::VectorXd piece(length);
+  for (int c = 0; c < channels; ++c) {
+    for (int s = 0; s < segments; ++s) {
+      piece = signals.col(c).segment(static_cast<Eigen::Index>(s) * step, length);
+      detrend_segment(piece, options.detrend);
+      batch.col(static_cast<Eigen::Index>(c) * segments + s).head(length) =
+          piece.cwiseProduct(window);
+    }
+  }
+  RealFft fft(nfft, static_cast<int>(batch.cols()));
+  const Eigen::MatrixXcd spectra = fft.forward(batch);
+
+  CrossSpectra out;
+  out.sample_rate_hz = sample_rate_hz;
+  out.segments = segments;
+  out.segment_length = length;
+  out.fft_length = nfft;
+  out.overlap_samples = length - step;
+  const int bins = fft.bins();
+  out.frequency_hz = Eigen::VectorXd::LinSpaced(bins, 0.0, bins - 1.0) * (sample_rate_hz / nfft);
+  out.g.resize(bins);
+  // Density scaling of scipy: 1 / (fs sum w^2), mean over segments, one-sided doubling of every
+  // bin that has a negative-frequency twin (all but 0 Hz and, for even nfft, fs / 2).
+  const double scale = 1.0 / (sample_rate_hz * window.squaredNorm() * segments);
+  using Strided = Eigen::Map<const Eigen::MatrixXcd, 0, Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>>;
+  for (int k = 0; k < bins; ++k) {
+    // (segments x channels) view of bin k: element (s, c) is spectra(k, c * segments + s).
+    const Strided a(spectra.data() + k, segments, channels,
+                    Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>(
+                        static_cast<Eigen::Index>(segments) * bins, bins));
+    const bool unpaired = k == 0 || (nfft % 2 == 0 && k == bins - 1);
+    out.g[k] = (a.adjoint() * a) * (unpaired ? scale : 2.0 * scale);
+  }
+  return out;
+}
+
+CrossSpectra welch_cross_spectra(const data::Trial& trial, const std::vector<std::string>& channels,
+                                 const WelchOptions& options) {
+  validate(options);
+  data::require_samples(trial, options.segment_length,
+                        "one Welch segment of " + std::to_string(options.segment_length) +
+                            " samples");
+  return welch_cross_spectra(trial.columns(channels), trial.sample_rate_hz, options,
+                             trial.source.empty() ? "trial" : trial.source);
+}
+
+}  // namespace stiffid::estimators
