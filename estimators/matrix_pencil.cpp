@@ -1,0 +1,131 @@
+#include "estimators/matrix_pencil.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <numeric>
+#include <string>
+#include <vector>
+
+namespace stiffid::estimators {
+namespace {
+
+void check_inputs(const Eigen::Ref<const Eigen::MatrixXd>& samples, double sample_rate_hz,
+                  const MatrixPencilOptions& options) {
+  if (!(sample_rate_hz > 0.0) || !std::isfinite(sample_rate_hz))
+    throw InputError("matrix pencil: sample rate must be positive and finite, got " +
+                     std::to_string(sample_rate_hz) + " Hz");
+  if (options.modes < 1)
+    throw InputError("matrix pencil: modes must be at least 1, got " +
+                     std::to_string(options.modes));
+  if (!(options.pencil_fraction > 0.0 && options.pencil_fraction <= 0.5))
+    throw InputError("matrix pencil: pencil_fraction must be in (0, 0.5], got " +
+                     std::to_string(options.pencil_fraction));
+  if (samples.cols() < 1) throw InputError("matrix pencil: no channels");
+  const int needed = 4 * options.modes + 2;
+  if (samples.rows() < needed)
+    throw InputError("matrix pencil: " + std::to_string(samples.rows()) + " samples cannot give " +
+                     std::to_string(options.modes) + " modes; need at least " +
+                     std::to_string(needed));
+  if (!samples.allFinite()) throw InputError("matrix pencil: samples contain NaN or infinity");
+}
+
+// Real least-squares basis of sum_j Re(a_j exp(lambda_j t)): columns Re(e), -Im(e) per pole, so
+// that the coefficients are [Re a_j, Im a_j].
+Eigen::MatrixXd damped_basis(const Eigen::VectorXcd& lambda,
+                             const Eigen::Ref<const Eigen::VectorXd>& t_s) {
+  Eigen::MatrixXd basis(t_s.size(), 2 * lambda.size());
+  for (Eigen::Index j = 0; j < lambda.size(); ++j)
+    for (Eigen::Index i = 0; i < t_s.size(); ++i) {
+      const std::complex<double> e = std::exp(lambda(j) * t_s(i));
+      basis(i, 2 * j) = e.real();
+      basis(i, 2 * j + 1) = -e.imag();
+    }
+  return basis;
+}
+
+}  // namespace
+
+MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd>& samples,
+                                          double sample_rate_hz,
+                                          const MatrixPencilOptions& options) {
+  check_inputs(samples, sample_rate_hz, options);
+  const int s = static_cast<int>(samples.rows());
+  const int c = static_cast<int>(samples.cols());
+  const int n = options.modes;
+  const int order = 2 * n;
+  const int pencil = std::clamp(static_cast<int>(options.pencil_fraction * s), order + 1,
+                                std::max(order + 1, options.max_pencil));
+  const int rows = s - pencil;
+
+  // Stacked Hankel matrix of all channels, (C (S - L)) x (L + 1).
+  Eigen::MatrixXd hankel(static_cast<Eigen::Index>(c) * rows, pencil + 1);
+  for (int k = 0; k < c; ++k)
+    for (int i = 0; i < rows; ++i)
+      hankel.row(static_cast<Eigen::Index>(k) * rows + i) =
+          samples.col(k).segment(i, pencil + 1).transpose();
+
+  MatrixPencilResult result;
+  result.pencil = pencil;
+  const Eigen::BDCSVD<Eigen::MatrixXd> svd(hankel, Eigen::ComputeThinV);
+  result.singular_values = svd.singularValues();
+  if (!(result.singular_values(0) > 0.0)) {
+    result.status = Status::failure("matrix pencil: the signals are identically zero");
+    return result;
+  }
+  const Eigen::MatrixXd v = svd.matrixV().leftCols(order);
+  const Eigen::MatrixXd v1 = v.topRows(pencil);
+  const Eigen::MatrixXd v2 = v.bottomRows(pencil);
+  const Eigen::MatrixXd z_matrix = v1.colPivHouseholderQr().solve(v2);  // (2n x 2n), Hua eq 23
+  const Eigen::VectorXcd z = Eigen::EigenSolver<Eigen::MatrixXd>(z_matrix, false).eigenvalues();
+
+  // Keep the poles in the upper half plane (their conjugates carry no new information).
+  std::vector<std::complex<double>> lambda_up;
+  for (Eigen::Index j = 0; j < z.size(); ++j) {
+    if (std::abs(z(j)) == 0.0) continue;
+    const std::complex<double> lambda = std::log(z(j)) * sample_rate_hz;
+    if (lambda.imag() > 1e-9 * sample_rate_hz) lambda_up.push_back(lambda);
+  }
+  if (static_cast<int>(lambda_up.size()) < n) {
+    result.status = Status::failure(
+        "matrix pencil: found " + std::to_string(lambda_up.size()) + " oscillatory poles of " +
+        std::to_string(n) + " (the others are real: overdamped modes or too much noise)");
+    return result;
+  }
+  std::sort(lambda_up.begin(), lambda_up.end(),
+            [](auto a, auto b) { return a.imag() < b.imag(); });
+  Eigen::VectorXcd lambda(n);
+  for (int j = 0; j < n; ++j) lambda(j) = lambda_up[j];
+  result.omega_rad_per_s = lambda.imag();
+  result.frequency_hz = result.omega_rad_per_s / (2.0 * M_PI);
+  result.alpha_per_s = lambda.real();
+
+  const Eigen::VectorXd t_s = Eigen::VectorXd::LinSpaced(s, 0.0, (s - 1) / sample_rate_hz);
+  const Eigen::MatrixXd basis = damped_basis(lambda, t_s);
+  const Eigen::MatrixXd coefficients = basis.colPivHouseholderQr().solve(samples);
+  result.amplitude.resize(n, c);
+  for (int j = 0; j < n; ++j)
+    for (int k = 0; k < c; ++k)
+      result.amplitude(j, k) = {coefficients(2 * j, k), coefficients(2 * j + 1, k)};
+  result.residual_rms = std::sqrt((samples - basis * coefficients).squaredNorm() / (double(s) * c));
+  return result;
+}
+
+Eigen::MatrixXd evaluate_damped_exponentials(const MatrixPencilResult& result,
+                                             const Eigen::Ref<const Eigen::VectorXd>& t_s) {
+  const Eigen::VectorXcd lambda =
+      result.alpha_per_s.cast<std::complex<double>>() +
+      std::complex<double>(0.0, 1.0) * result.omega_rad_per_s.cast<std::complex<double>>();
+  const Eigen::MatrixXd basis = damped_basis(lambda, t_s);
+  Eigen::MatrixXd coefficients(2 * lambda.size(), result.amplitude.cols());
+  for (Eigen::Index j = 0; j < lambda.size(); ++j) {
+    coefficients.row(2 * j) = result.amplitude.row(j).real();
+    coefficients.row(2 * j + 1) = result.amplitude.row(j).imag();
+  }
+  return basis * coefficients;
+}
+
+}  // namespace stiffid::estimators

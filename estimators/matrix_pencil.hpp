@@ -1,0 +1,52 @@
+#pragma once
+// Multichannel matrix pencil: n damped oscillations shared by all channels of uniformly sampled
+// real signals (Hua & Sarkar 1990, IEEE Trans. ASSP 38(5) eqs 10-25; the multichannel form stacks
+// the Hankel matrices of all channels so that they share one signal subspace). Used as the start of
+// the damped-mode fit (damped_modes.hpp) of the `modal` tfa method (issue 7).
+//
+// Model, for channel k and sample i (t_i = i / sample_rate_hz, t_0 = 0 at the first sample):
+//   x_k(t_i) = sum_j Re( a_jk exp(lambda_j t_i) ),  lambda_j = alpha_j + i omega_j,
+// the real form of Piovesan 2012 eqs 29-34 (each real mode is a conjugate pair of complex poles,
+// a_jk = 2 c_j v_jk carries the complex mode shape v_j of eq 38 and the modal amplitude C_j e^-i phi_j
+// of eq 33). alpha_j follows the paper's sign (eq 47: alpha = d/dt ln A, negative for a decaying
+// mode); the decay rate is -alpha_j.
+
+#include <Eigen/Core>
+
+#include "data/error.hpp"
+
+namespace stiffid::estimators {
+
+struct MatrixPencilOptions {
+  int modes = 2;                 ///< n real damped oscillations (2n complex poles)
+  double pencil_fraction = 1.0 / 3.0;  ///< pencil parameter L as a fraction of the samples, (0, 0.5]
+  int max_pencil = 160;          ///< cap on L, samples: the cost is O(channels * samples * L^2)
+};
+
+struct MatrixPencilResult {
+  Status status;                        ///< failure when fewer than n oscillatory poles were found
+  Eigen::VectorXd frequency_hz;         ///< [n] damped frequencies omega_j / 2 pi, Hz, ascending
+  Eigen::VectorXd omega_rad_per_s;      ///< [n] damped angular frequencies omega_j, rad/s
+  Eigen::VectorXd alpha_per_s;          ///< [n] alpha_j = Re(lambda_j), 1/s (eq 47 sign: < 0 decays)
+  Eigen::MatrixXcd amplitude;           ///< (n x C) a_jk at the first sample, channel units
+  Eigen::VectorXd singular_values;      ///< [L + 1] of the stacked Hankel matrix (model order check)
+  double residual_rms = 0.0;            ///< RMS of data minus model over all samples, channel units
+  int pencil = 0;                       ///< pencil parameter L used, samples
+};
+
+/// Estimates n damped oscillations shared by the columns of `samples` (S x C, one channel per
+/// column, S >= 4n + 2). Signal subspace: the 2n dominant right singular vectors V ((L+1) x 2n) of
+/// the stacked Hankel matrix [Y_1; ...; Y_C], Y_k(i, l) = x_k(i + l) ((S - L) x (L + 1) each); poles
+/// z = eig(V_1^+ V_2) with V_1, V_2 the first and last L rows of V (Hua & Sarkar eq 23);
+/// lambda = ln(z) * sample_rate_hz; amplitudes by linear least squares on the damped-exponential
+/// basis. The n poles with positive imaginary part are reported. Throws InputError on too few
+/// samples, a non-positive rate or n < 1.
+MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd>& samples,
+                                          double sample_rate_hz,
+                                          const MatrixPencilOptions& options);
+
+/// Model of the result at times t_s (seconds from the first sample): (T x C), channel units.
+Eigen::MatrixXd evaluate_damped_exponentials(const MatrixPencilResult& result,
+                                             const Eigen::Ref<const Eigen::VectorXd>& t_s);
+
+}  // namespace stiffid::estimators
