@@ -1,0 +1,56 @@
+#pragma once
+// Stage 3 of the time-frequency identification (Piovesan et al. 2012, eqs 5-6 and 33-36): ridges
+// of the n modes through the reassigned spectrogram by dynamic programming, then at each frame the
+// sub-bin angular frequency, decay rate, amplitude and phase of every mode in every channel.
+
+#include <Eigen/Core>
+#include <complex>
+#include <vector>
+
+#include "data/error.hpp"
+#include "estimators/reassigned_spectrogram.hpp"
+
+namespace stiffid::estimators {
+
+struct RidgeOptions {
+  int modes = 2;                       ///< n, number of ridges (degrees of freedom)
+  double min_frequency_hz = 0.5;       ///< band searched, Hz
+  double max_frequency_hz = 20.0;      ///< band searched, Hz
+  double jump_penalty_per_hz = 2.0;    ///< DP cost of a frequency jump, per Hz per frame, in units
+                                       ///< of the score (natural log of power)
+  double max_jump_hz = 0.5;            ///< largest frequency change of a ridge between frames, Hz
+  bool use_reassigned_power = true;    ///< track on the reassigned map (else on |X_h|^2)
+  double power_floor_db = -120.0;      ///< power floor below the map's maximum, dB (log of zero)
+  int fit_half_width_bins = 1;         ///< the frame model is fitted on bins ridge +- this many
+  int refine_iterations = 12;          ///< rounds of interference cancellation for starting values
+  double relaxation = 0.6;             ///< step of each round towards its new estimate, (0, 1]
+};
+
+/// Per-frame description of the modes. With lambda_j = alpha_j + i omega_j, the part of channel k
+/// that belongs to mode j near frame m is Re(amplitude_c[j](m, k) exp(lambda_j (t - t_m))): a
+/// damped cosine A_jk cos(omega_j (t - t_m) + phase_jk) (eqs 5, 35).
+struct RidgeResult {
+  Eigen::VectorXd time_s;            ///< [T] frame centres, s
+  Eigen::MatrixXi bin;               ///< (T x n) DP path, index into the spectrogram's bins
+  Eigen::MatrixXd frequency_hz;      ///< (T x n) f_j, Hz, ascending in j
+  Eigen::MatrixXd omega_rad_per_s;   ///< (T x n) omega_j = 2 pi f_j, rad/s (eq 6)
+  Eigen::MatrixXd decay_rate_per_s;  ///< (T x n) alpha_j from the reassignment, 1/s (< 0: decay)
+  std::vector<Eigen::MatrixXd> amplitude;     ///< [n] of (T x C) A_jk, channel units (rad)
+  std::vector<Eigen::MatrixXd> phase_rad;     ///< [n] of (T x C) phase of mode j in channel k
+  std::vector<Eigen::MatrixXcd> amplitude_c;  ///< [n] of (T x C) complex amplitudes
+  Status status;                     ///< failure when a frame could not be resolved
+};
+
+/// Joint DP over the n ridges b_1 < ... < b_n (modes never cross) maximising
+/// sum_t sum_j ln(P(b_j, t) + floor) - penalty sum_t sum_j |f(b_j, t) - f(b_j, t - 1)|, with jumps
+/// limited to max_jump_hz. At each frame, the modes are then refined from the STFT values: starting
+/// from the reassigned frequency and decay at the ridge bins (channels weighted by |X_h|^2), the
+/// complex amplitudes of all modes (and, for real signals, their negative-frequency images) are
+/// fitted by least squares on the bins near the ridges with the exact window transform W, the
+/// other components are subtracted from X_h and X_dh at each ridge bin, and the reassignment
+/// equation Wd(s) / W(s) = X_dh / X_h is solved for lambda = s + i nu by Newton's method. For a sum
+/// of n damped exponentials this recovers frequencies, decay rates and amplitudes exactly.
+/// Throws InputError on options out of range (modes < 1, band without n bins).
+RidgeResult track_ridges(const ReassignedSpectrogram& spectrogram, const RidgeOptions& options);
+
+}  // namespace stiffid::estimators

@@ -1,0 +1,106 @@
+#include "estimators/tfa_deviation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "data/error.hpp"
+#include "estimators/hilbert.hpp"
+
+namespace stiffid::estimators {
+namespace {
+
+std::string where(const data::Trial& trial) {
+  return trial.source.empty() ? std::string("trial") : trial.source;
+}
+
+double median(Eigen::VectorXd v) {
+  std::sort(v.data(), v.data() + v.size());
+  const Eigen::Index n = v.size();
+  return n % 2 ? v(n / 2) : 0.5 * (v(n / 2 - 1) + v(n / 2));
+}
+
+}  // namespace
+
+double detect_onset_s(const data::Trial& trial, const std::vector<std::string>& force_channels,
+                      double threshold, double& end_s) {
+  if (force_channels.empty()) {
+    throw InputError("--onset auto needs the force channels (--forces fx,fy)");
+  }
+  if (!(threshold > 0.0 && threshold < 1.0)) {
+    throw InputError("onset threshold must be in (0, 1), got " + std::to_string(threshold));
+  }
+  Eigen::MatrixXd f = trial.columns(force_channels);
+  for (Eigen::Index c = 0; c < f.cols(); ++c) f.col(c).array() -= median(f.col(c));
+  const Eigen::VectorXd norm = f.rowwise().norm();
+  const double peak = norm.size() ? norm.maxCoeff() : 0.0;
+  if (!(peak > 0.0)) {
+    throw InputError(where(trial) + ": --onset auto: the force channels carry no pulse (constant)");
+  }
+  Eigen::Index first = 0;
+  while (norm(first) < threshold * peak) ++first;
+  Eigen::Index last = first;
+  while (last + 1 < norm.size() && norm(last + 1) >= threshold * peak) ++last;
+  end_s = trial.start_time_s + (last + 1) * trial.step_s();
+  return trial.start_time_s + first * trial.step_s();
+}
+
+DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions& options,
+                                const data::Trial* baseline) {
+  if (options.angle_channels.empty()) throw InputError("--angles: no angle channel given");
+  const Eigen::MatrixXd angles = trial.columns(options.angle_channels);
+  const double dt = trial.step_s();
+  const double t_end = trial.start_time_s + trial.sample_count() * dt;
+  DeviationResult r;
+  r.sample_rate_hz = trial.sample_rate_hz;
+  r.channels = options.angle_channels;
+  double pulse_end_s = 0.0;
+  if (std::isnan(options.onset_s)) {
+    r.onset_s = detect_onset_s(trial, options.force_channels, options.onset_threshold, pulse_end_s);
+  } else {
+    r.onset_s = options.onset_s;
+    pulse_end_s = r.onset_s + std::max(0.0, options.pulse_s);
+    if (!std::isfinite(r.onset_s) || r.onset_s < trial.start_time_s || r.onset_s >= t_end) {
+      throw InputError("--onset " + std::to_string(options.onset_s) + " s is outside " +
+                       where(trial) + " (" + std::to_string(trial.start_time_s) + " to " +
+                       std::to_string(t_end) + " s)");
+    }
+  }
+  const int onset = static_cast<int>(std::ceil((r.onset_s - trial.start_time_s) / dt - 1e-9));
+  const int rows = trial.sample_count() - onset;
+  r.start_time_s = trial.start_time_s + onset * dt;
+  r.free_start_s = std::max(pulse_end_s, r.start_time_s);
+  if (baseline == nullptr) {
+    const int pre = static_cast<int>(std::lround(options.pre_onset_s / dt));
+    if (pre < 1 || onset - pre < 0) {
+      throw InputError(where(trial) + ": the posture is the mean over " +
+                       std::to_string(options.pre_onset_s) + " s before the onset at " +
+                       std::to_string(r.onset_s) + " s, but the trial starts at " +
+                       std::to_string(trial.start_time_s) + " s (give --baseline or a later onset)");
+    }
+    const Eigen::RowVectorXd posture = angles.middleRows(onset - pre, pre).colwise().mean();
+    r.posture_rad = posture.replicate(rows, 1);
+  } else {
+    if (std::abs(baseline->sample_rate_hz - trial.sample_rate_hz) >
+        1e-9 * trial.sample_rate_hz) {
+      throw InputError("--baseline " + where(*baseline) + ": sample rate " +
+                       std::to_string(baseline->sample_rate_hz) + " Hz differs from the trial's " +
+                       std::to_string(trial.sample_rate_hz) + " Hz");
+    }
+    const Eigen::MatrixXd base = baseline->columns(options.angle_channels);
+    const long first = std::lround((r.start_time_s - baseline->start_time_s) / dt);
+    if (first < 0 || first + rows > baseline->sample_count()) {
+      throw InputError("--baseline " + where(*baseline) + " covers " +
+                       std::to_string(baseline->start_time_s) + " to " +
+                       std::to_string(baseline->start_time_s + baseline->duration_s()) +
+                       " s but the trial needs " + std::to_string(r.start_time_s) + " to " +
+                       std::to_string(t_end) + " s");
+    }
+    r.posture_rad = base.middleRows(first, rows);
+  }
+  r.deviation_rad = angles.bottomRows(rows) - r.posture_rad;
+  if (options.analytic) r.hilbert_rad = hilbert_transform(r.deviation_rad);
+  return r;
+}
+
+}  // namespace stiffid::estimators
