@@ -1,0 +1,607 @@
+#include "estimators/damped_modes.hpp"
+
+#include <ceres/ceres.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <memory>
+#include <numeric>
+#include <string>
+
+#include "estimators/cubic_bspline.hpp"
+#include "estimators/fir_decimator.hpp"
+
+namespace stiffid::estimators {
+namespace {
+
+using Complex = std::complex<double>;
+using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Filtered, decimated free response and the whitening that makes its noise white with unit
+// variance in every channel.
+struct Prepared {
+  Eigen::VectorXd t_s;        // [N] absolute times, s
+  Eigen::VectorXd tau_s;      // [N] from the first fitted sample, s
+  Eigen::MatrixXd y;          // (N x C) data, channel units
+  Eigen::VectorXd yw;         // [N C] whitened data, row i * C + k
+  Eigen::MatrixXd cholesky;   // (C x C) L with noise covariance = L L^T
+  Eigen::MatrixXd whiten;     // (C x C) W = L^-1
+  Eigen::MatrixXd noise_cov;  // (C x C)
+  double rate_hz = 0.0;
+};
+
+void check_options(const DampedModesOptions& o) {
+  auto fail = [](const std::string& key, const std::string& what) {
+    throw InputError("modal fit: option " + key + " " + what);
+  };
+  if (o.modes < 1) fail("modes", "must be at least 1");
+  if (!(o.knot_spacing_s > 0.0)) fail("knot_spacing_s", "must be positive (s)");
+  if (!(o.noise_window_s > 0.0)) fail("noise_window_s", "must be positive (s)");
+  if (!(o.skip_s >= 0.0)) fail("skip_s", "must be non-negative (s)");
+  if (o.track_roughness == 0.0 || !std::isfinite(o.track_roughness))
+    fail("track_roughness", "must be positive (rad/s), or negative for the GCV choice");
+  if (!(o.init_window_s > 0.0)) fail("init_window_s", "must be positive (s)");
+  if (!(o.max_frequency_sd_hz > 0.0)) fail("max_frequency_sd_hz", "must be positive (Hz)");
+  if (o.max_iterations < 1) fail("max_iterations", "must be at least 1");
+}
+
+Prepared prepare(const Eigen::Ref<const Eigen::MatrixXd>& x, double rate_hz, double start_s,
+                 double onset_s, const DampedModesOptions& o) {
+  const int s = static_cast<int>(x.rows());
+  const int c = static_cast<int>(x.cols());
+  if (!(rate_hz > 0.0)) throw InputError("modal fit: sample rate must be positive");
+  if (c < 1) throw InputError("modal fit: no channels");
+  if (!x.allFinite()) throw InputError("modal fit: deviations contain NaN or infinity");
+  const FirDecimator decimator(rate_hz, o.decimate_hz > 0.0 ? o.decimate_hz : rate_hz);
+  const int h = decimator.half_length();
+  const int onset = static_cast<int>(std::ceil((onset_s - start_s) * rate_hz - 1e-9));
+  if (onset < 0 || onset >= s)
+    throw InputError("modal fit: onset " + std::to_string(onset_s) + " s is outside the record [" +
+                     std::to_string(start_s) + ", " + std::to_string(start_s + s / rate_hz) +
+                     ") s");
+  const int noise_first = onset - static_cast<int>(std::lround(o.noise_window_s * rate_hz)) + h;
+  const int noise_last = onset - 1 - h;
+  if (noise_first < h || noise_last - noise_first + 1 < 8 * c)
+    throw InputError("modal fit: the record needs noise_window_s = " +
+                     std::to_string(o.noise_window_s) + " s of samples before the onset (plus " +
+                     std::to_string(h / rate_hz) + " s for the decimation filter)");
+  const int first = onset + static_cast<int>(std::ceil(o.skip_s * rate_hz)) + h;
+  const int d = decimator.factor();
+  const int n = first <= s - 1 - h ? (s - 1 - h - first) / d + 1 : 0;
+  Prepared p;
+  p.rate_hz = decimator.output_rate_hz();
+  if (n < 2 || (n - 1) / p.rate_hz < 0.5)
+    throw InputError("modal fit: less than 0.5 s of free response after onset + skip_s (" +
+                     std::to_string(std::max(0, n) / p.rate_hz) + " s)");
+  const Eigen::VectorXi index = Eigen::VectorXi::LinSpaced(n, first, first + (n - 1) * d);
+  p.y = decimator.filter_at(x, index);
+  p.t_s = start_s + index.cast<double>().array() / rate_hz;
+  p.tau_s = p.t_s.array() - p.t_s(0);
+
+  const Eigen::VectorXi noise_index =
+      Eigen::VectorXi::LinSpaced(noise_last - noise_first + 1, noise_first, noise_last);
+  Eigen::MatrixXd noise = decimator.filter_at(x, noise_index);
+  noise.rowwise() -= noise.colwise().mean();
+  p.noise_cov = noise.transpose() * noise / double(noise.rows() - 1);
+  // Floor for noise-free data: 1e-12 of the signal power keeps the whitening finite; it is far
+  // below any real noise (120 dB SNR).
+  const double floor = 1e-12 * p.y.squaredNorm() / double(p.y.size()) + 1e-300;
+  const Eigen::MatrixXd cov = p.noise_cov + floor * Eigen::MatrixXd::Identity(c, c);
+  const Eigen::LLT<Eigen::MatrixXd> llt(cov);
+  p.cholesky = llt.matrixL();
+  p.whiten = p.cholesky.triangularView<Eigen::Lower>().solve(Eigen::MatrixXd::Identity(c, c));
+  const Eigen::MatrixXd yw = p.y * p.whiten.transpose();  // (N x C)
+  p.yw = Eigen::Map<const Eigen::VectorXd>(Eigen::MatrixXd(yw.transpose()).data(), n * c);
+  return p;
+}
+
+// One real linear parameter pair (Re, Im of a complex coefficient) of the variable projection:
+// whitened contribution Re(coef * direction_k * F(t, function) * exp(Phi_j(t))) in channel k.
+struct LinearTerm {
+  int mode;
+  Eigen::VectorXcd direction;  // [C] in whitened channel space
+  int function;                // column of the time-function matrix
+};
+
+// Variable-projection problem for fixed linear terms and shape penalty.
+class VpProblem {
+ public:
+  VpProblem(const Prepared& p, int modes, const Eigen::MatrixXd& phase_integrals,
+            const Eigen::MatrixXd& functions, std::vector<LinearTerm> terms,
+            std::vector<std::pair<int, int>> penalized_pairs, double shape_weight,
+            const Eigen::MatrixXd& prior_rows)
+      : p_(p), modes_(modes), ig_(phase_integrals), f_(functions), terms_(std::move(terms)),
+        pairs_(std::move(penalized_pairs)), sqrt_weight_(std::sqrt(shape_weight)),
+        prior_(prior_rows) {}
+
+  int basis() const { return static_cast<int>(ig_.cols()); }
+  int parameters() const { return 2 * modes_ * basis(); }
+  int linear() const { return 2 * static_cast<int>(terms_.size()); }
+  int data_rows() const { return static_cast<int>(p_.yw.size()); }
+  int penalty_rows() const { return 2 * static_cast<int>(pairs_.size()); }
+  int residuals() const { return data_rows() + penalty_rows() + static_cast<int>(prior_.rows()); }
+
+  // exp(Phi_j(tau_i)) for every mode: (N x n); false on overflow.
+  bool oscillations(const double* theta, Eigen::MatrixXcd& e) const {
+    const int m = basis();
+    e.resize(ig_.rows(), modes_);
+    for (int j = 0; j < modes_; ++j) {
+      const Eigen::VectorXd re = ig_ * Eigen::Map<const Eigen::VectorXd>(theta + 2 * j * m, m);
+      const Eigen::VectorXd im = ig_ * Eigen::Map<const Eigen::VectorXd>(theta + (2 * j + 1) * m, m);
+      if (!re.allFinite() || !im.allFinite() || re.cwiseAbs().maxCoeff() > 600.0) return false;
+      for (Eigen::Index i = 0; i < re.size(); ++i) e(i, j) = std::exp(Complex(re(i), im(i)));
+    }
+    return true;
+  }
+
+  // Design matrix of the linear parameters: data rows then shape-penalty rows (without weight).
+  void design(const Eigen::MatrixXcd& e, Eigen::MatrixXd& a_data, Eigen::MatrixXd& a_penalty) const {
+    const int n = static_cast<int>(e.rows());
+    const int c = static_cast<int>(p_.whiten.rows());
+    a_data.setZero(data_rows(), linear());
+    for (size_t t = 0; t < terms_.size(); ++t) {
+      const LinearTerm& term = terms_[t];
+      for (int i = 0; i < n; ++i) {
+        const Complex v = f_(i, term.function) * e(i, term.mode);
+        for (int k = 0; k < c; ++k) {
+          const Complex w = term.direction(k) * v;
+          a_data(i * c + k, 2 * t) = w.real();
+          a_data(i * c + k, 2 * t + 1) = -w.imag();
+        }
+      }
+    }
+    a_penalty.setZero(penalty_rows(), linear());
+    for (size_t q = 0; q < pairs_.size(); ++q)
+      for (int part = 0; part < 2; ++part) {
+        a_penalty(2 * q + part, 2 * pairs_[q].first + part) = -1.0;
+        a_penalty(2 * q + part, 2 * pairs_[q].second + part) = 1.0;
+      }
+  }
+
+  // Residuals [whitened data; shape penalty; track prior] and, when asked, Kaufman's Jacobian
+  // (row-major, residuals x parameters). Returns the linear solution in `linear_out`.
+  bool evaluate(const double* theta, double* residuals, double* jacobian,
+                Eigen::VectorXd* linear_out) const {
+    Eigen::MatrixXcd e;
+    if (!oscillations(theta, e)) return false;
+    Eigen::MatrixXd a_data, a_penalty;
+    design(e, a_data, a_penalty);
+    const int rd = data_rows(), rp = penalty_rows(), nl = linear(), np = parameters();
+    Eigen::MatrixXd a(rd + rp, nl);
+    a << a_data, sqrt_weight_ * a_penalty;
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(rd + rp);
+    b.head(rd) = p_.yw;
+    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
+    const Eigen::VectorXd beta = qr.solve(b);
+    if (!beta.allFinite()) return false;
+    const Eigen::Map<const Eigen::VectorXd> th(theta, np);
+    Eigen::Map<Eigen::VectorXd> r(residuals, residuals_count());
+    r.head(rd + rp) = b - a * beta;
+    r.tail(prior_.rows()) = prior_ * th;
+    if (linear_out) *linear_out = beta;
+    if (!jacobian) return true;
+
+    // D = d(A beta)/d theta with beta held fixed: the phase coefficients of mode j move the
+    // whitened contribution Y_j by (integral of B_m) times Y_j (alpha) or i Y_j (omega).
+    const int c = static_cast<int>(p_.whiten.rows());
+    const int n = static_cast<int>(e.rows());
+    const int m = basis();
+    Eigen::MatrixXcd contribution = Eigen::MatrixXcd::Zero(n * c, modes_);
+    for (size_t t = 0; t < terms_.size(); ++t) {
+      const LinearTerm& term = terms_[t];
+      const Complex coef(beta(2 * t), beta(2 * t + 1));
+      for (int i = 0; i < n; ++i) {
+        const Complex v = coef * f_(i, term.function) * e(i, term.mode);
+        for (int k = 0; k < c; ++k) contribution(i * c + k, term.mode) += term.direction(k) * v;
+      }
+    }
+    Eigen::MatrixXd d = Eigen::MatrixXd::Zero(rd + rp, np);
+    for (int j = 0; j < modes_; ++j)
+      for (int i = 0; i < n; ++i)
+        for (int k = 0; k < c; ++k) {
+          const Complex y = contribution(i * c + k, j);
+          for (int q = 0; q < m; ++q) {
+            const double g = ig_(i, q);
+            if (g == 0.0) continue;
+            d(i * c + k, 2 * j * m + q) = g * y.real();
+            d(i * c + k, (2 * j + 1) * m + q) = -g * y.imag();
+          }
+        }
+    const int rank = static_cast<int>(qr.rank());
+    const Eigen::MatrixXd q_thin = qr.householderQ() * Eigen::MatrixXd::Identity(rd + rp, rank);
+    Eigen::Map<RowMajor> jac(jacobian, residuals_count(), np);
+    jac.topRows(rd + rp) = -(d - q_thin * (q_thin.transpose() * d));
+    jac.bottomRows(prior_.rows()) = prior_;
+    return true;
+  }
+
+  int residuals_count() const { return residuals(); }
+  const std::vector<LinearTerm>& terms() const { return terms_; }
+
+ private:
+  const Prepared& p_;
+  int modes_;
+  Eigen::MatrixXd ig_;  // (N x M) running integrals of the track basis, s
+  Eigen::MatrixXd f_;   // (N x F) time functions of the linear terms
+  std::vector<LinearTerm> terms_;
+  std::vector<std::pair<int, int>> pairs_;  // linear terms whose difference is penalized
+  double sqrt_weight_;
+  Eigen::MatrixXd prior_;  // (R x P) roughness prior rows
+};
+
+class VpCost final : public ceres::CostFunction {
+ public:
+  explicit VpCost(const VpProblem& problem) : problem_(problem) {
+    set_num_residuals(problem.residuals());
+    mutable_parameter_block_sizes()->push_back(problem.parameters());
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    return problem_.evaluate(parameters[0], residuals, jacobians ? jacobians[0] : nullptr, nullptr);
+  }
+
+ private:
+  const VpProblem& problem_;
+};
+
+struct StageOutcome {
+  bool usable = false;
+  bool converged = false;
+  int iterations = 0;
+  std::string message;
+};
+
+StageOutcome solve(const VpProblem& problem, Eigen::VectorXd& theta, int max_iterations) {
+  ceres::Problem ceres_problem;
+  ceres_problem.AddResidualBlock(new VpCost(problem), nullptr, theta.data());
+  ceres::Solver::Options options;
+  options.linear_solver_type = ceres::DENSE_QR;
+  options.max_num_iterations = max_iterations;
+  options.num_threads = 1;  // deterministic and cheap: one dense block
+  options.logging_type = ceres::SILENT;
+  options.function_tolerance = 1e-10;
+  options.parameter_tolerance = 1e-10;
+  options.gradient_tolerance = 1e-12;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &ceres_problem, &summary);
+  StageOutcome out;
+  out.usable = summary.IsSolutionUsable();
+  out.converged = summary.termination_type == ceres::CONVERGENCE;
+  out.iterations = static_cast<int>(summary.iterations.size());
+  out.message = summary.message;
+  return out;
+}
+
+// Smooth start for omega_j, alpha_j: matrix pencils on sliding windows, each mode's estimates kept
+// where its window amplitude-to-noise ratio is at least 6 dB and it continues the previous one,
+// then least squares on the spline coefficients with a small first-difference ridge that bridges
+// the gaps and holds the ends constant.
+Eigen::VectorXd start_tracks(const Prepared& p, const UniformCubicBspline& track,
+                             const MatrixPencilResult& global, const DampedModesOptions& o) {
+  const int n = static_cast<int>(p.y.rows());
+  const int modes = o.modes;
+  const int m = track.size();
+  const int window = std::min(n, std::max(4 * modes + 2,
+                                          static_cast<int>(std::lround(o.init_window_s * p.rate_hz))));
+  const int hop = std::max(1, static_cast<int>(std::lround(track.spacing_s() * p.rate_hz)));
+  std::vector<std::vector<double>> centre(modes), omega(modes), alpha(modes);
+  Eigen::VectorXd last_omega = global.omega_rad_per_s;
+  MatrixPencilOptions po;
+  po.modes = modes;
+  for (int first = 0; first + window <= n; first += hop) {
+    const MatrixPencilResult w = estimate_matrix_pencil(p.y.middleRows(first, window), p.rate_hz, po);
+    if (!w.status.ok) continue;
+    const double half_s = 0.5 * (window - 1) / p.rate_hz;
+    for (int j = 0; j < modes; ++j) {
+      const Eigen::VectorXcd white = p.whiten * w.amplitude.row(j).transpose();
+      const double anr = 0.5 * white.squaredNorm() * std::exp(2.0 * w.alpha_per_s(j) * half_s);
+      const double ratio = w.omega_rad_per_s(j) / last_omega(j);
+      if (anr < 4.0 || ratio < 0.7 || ratio > 1.4 || std::abs(w.alpha_per_s(j)) > w.omega_rad_per_s(j))
+        continue;
+      centre[j].push_back(p.tau_s(first) + half_s);
+      omega[j].push_back(w.omega_rad_per_s(j));
+      alpha[j].push_back(w.alpha_per_s(j));
+      last_omega(j) = w.omega_rad_per_s(j);
+    }
+  }
+  Eigen::VectorXd theta(2 * modes * m);
+  const Eigen::MatrixXd ridge = 1e-2 * track.first_differences();
+  for (int j = 0; j < modes; ++j) {
+    if (centre[j].empty()) {
+      theta.segment(2 * j * m, m).setConstant(global.alpha_per_s(j));
+      theta.segment((2 * j + 1) * m, m).setConstant(global.omega_rad_per_s(j));
+      continue;
+    }
+    const int k = static_cast<int>(centre[j].size());
+    const Eigen::MatrixXd b = track.values(Eigen::Map<Eigen::VectorXd>(centre[j].data(), k));
+    Eigen::MatrixXd a(k + ridge.rows(), m);
+    a << b, ridge;
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(k + ridge.rows(), 2);
+    rhs.topLeftCorner(k, 1) = Eigen::Map<Eigen::VectorXd>(alpha[j].data(), k);
+    rhs.topRightCorner(k, 1) = Eigen::Map<Eigen::VectorXd>(omega[j].data(), k);
+    const Eigen::MatrixXd coef = a.colPivHouseholderQr().solve(rhs);
+    theta.segment(2 * j * m, m) = coef.col(0);
+    theta.segment((2 * j + 1) * m, m) = coef.col(1);
+  }
+  return theta;
+}
+
+// Roughness prior rows (2 n (M - 2) x P): second differences of every track / roughness.
+Eigen::MatrixXd prior_rows(const UniformCubicBspline& track, int modes, double roughness) {
+  const Eigen::MatrixXd d2 = track.second_differences() / roughness;
+  const int m = track.size();
+  Eigen::MatrixXd rows = Eigen::MatrixXd::Zero(2 * modes * d2.rows(), 2 * modes * m);
+  for (int b = 0; b < 2 * modes; ++b) rows.block(b * d2.rows(), b * m, d2.rows(), m) = d2;
+  return rows;
+}
+
+// Generalized cross-validation of the shape penalty at fixed tracks (Golub, Heath & Wahba 1979):
+// GCV(lambda) = N ||r||^2 / (N - tr H)^2 over a log grid 1e-3 .. 1e6.
+double choose_shape_weight(const VpProblem& problem, const Eigen::VectorXd& theta,
+                           const Prepared& p) {
+  Eigen::MatrixXcd e;
+  if (!problem.oscillations(theta.data(), e)) return 1.0;
+  Eigen::MatrixXd a, r;
+  problem.design(e, a, r);
+  const Eigen::MatrixXd ata = a.transpose() * a;
+  const Eigen::MatrixXd rtr = r.transpose() * r;
+  const Eigen::VectorXd atb = a.transpose() * p.yw;
+  const double rows = static_cast<double>(a.rows());
+  double best = 1.0, best_score = std::numeric_limits<double>::infinity();
+  for (int k = -6; k <= 12; ++k) {
+    const double lambda = std::pow(10.0, 0.5 * k);
+    const Eigen::MatrixXd normal = ata + lambda * rtr;
+    const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(normal);
+    const Eigen::VectorXd beta = cod.solve(atb);
+    const double trace = cod.solve(ata).trace();
+    const double score = rows * (p.yw - a * beta).squaredNorm() / std::pow(rows - trace, 2);
+    if (score < best_score) {
+      best_score = score;
+      best = lambda;
+    }
+  }
+  return best;
+}
+
+// GCV of the track roughness at a converged fit: GCV = N ||r||^2 / (N - dof)^2 with dof the
+// trace of the linearized influence of the track coefficients plus the linear parameters.
+double track_gcv(const VpProblem& problem, const Eigen::VectorXd& theta) {
+  Eigen::VectorXd residual(problem.residuals());
+  RowMajor jacobian(problem.residuals(), problem.parameters());
+  if (!problem.evaluate(theta.data(), residual.data(), jacobian.data(), nullptr))
+    return std::numeric_limits<double>::infinity();
+  const int rd = problem.data_rows();
+  const Eigen::MatrixXd jd = jacobian.topRows(rd);
+  const Eigen::MatrixXd normal = jacobian.transpose() * jacobian;  // data + prior rows
+  const double dof =
+      Eigen::LDLT<Eigen::MatrixXd>(normal).solve(jd.transpose() * jd).trace() + problem.linear();
+  return rd * residual.head(rd).squaredNorm() / std::pow(std::max(1.0, rd - dof), 2);
+}
+
+// Orthonormal basis (C x C) whose first column is u / |u| (complex Householder completion).
+Eigen::MatrixXcd complete_basis(const Eigen::VectorXcd& u) {
+  const Eigen::HouseholderQR<Eigen::MatrixXcd> qr(u);
+  Eigen::MatrixXcd q = qr.householderQ() * Eigen::MatrixXcd::Identity(u.size(), u.size());
+  q.col(0) = u / u.norm();
+  return q;
+}
+
+}  // namespace
+
+DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& deviation,
+                                   double sample_rate_hz, double start_time_s, double onset_s,
+                                   const DampedModesOptions& options) {
+  check_options(options);
+  const Prepared p = prepare(deviation, sample_rate_hz, start_time_s, onset_s, options);
+  const int n = static_cast<int>(p.y.rows());
+  const int c = static_cast<int>(p.y.cols());
+  const int modes = options.modes;
+  DampedModesResult result;
+  result.t_s = p.t_s;
+  result.rate_hz = p.rate_hz;
+  result.noise_covariance = p.noise_cov;
+  result.data = p.y;
+
+  MatrixPencilOptions po;
+  po.modes = modes;
+  result.start = estimate_matrix_pencil(p.y, p.rate_hz, po);
+  if (!result.start.status.ok) {
+    result.status = Status::failure("modal fit: no start: " + result.start.status.message);
+    return result;
+  }
+  const UniformCubicBspline track(p.tau_s(n - 1), options.knot_spacing_s);
+  const int m = track.size();
+  const Eigen::MatrixXd integrals = track.integrals(p.tau_s);
+  Eigen::VectorXd theta = start_tracks(p, track, result.start, options);
+
+  // Stage 1: constant mode shapes, one free complex amplitude per mode and whitened channel. The
+  // track roughness is chosen by GCV along a continuation from smooth to rough (each fit starts
+  // from the smoother one), unless given.
+  std::vector<LinearTerm> terms;
+  for (int j = 0; j < modes; ++j)
+    for (int k = 0; k < c; ++k) terms.push_back({j, Eigen::VectorXcd::Unit(c, k), 0});
+  const Eigen::MatrixXd constant = Eigen::MatrixXd::Ones(n, 1);
+  std::vector<double> grid = {options.track_roughness};
+  if (options.track_roughness < 0.0) grid = {0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0};
+  std::unique_ptr<VpProblem> stage1;
+  StageOutcome outcome;
+  double best_score = std::numeric_limits<double>::infinity();
+  int worse = 0;
+  Eigen::VectorXd best_theta = theta;
+  for (const double roughness : grid) {
+    auto problem = std::make_unique<VpProblem>(p, modes, integrals, constant, terms,
+                                               std::vector<std::pair<int, int>>{}, 0.0,
+                                               prior_rows(track, modes, roughness));
+    Eigen::VectorXd candidate = theta;
+    const StageOutcome o = solve(*problem, candidate, options.max_iterations);
+    result.iterations += o.iterations;
+    if (!o.usable) break;
+    const double score = grid.size() > 1 ? track_gcv(*problem, candidate) : 0.0;
+    if (score < best_score) {
+      best_score = score;
+      stage1 = std::move(problem);
+      outcome = o;
+      result.track_roughness = roughness;
+      best_theta = candidate;
+      worse = 0;
+    } else if (++worse == 2) {
+      break;  // GCV rose twice in a row: rougher tracks only fit the noise
+    }
+    theta = candidate;  // continuation: the next, rougher fit starts here
+  }
+  if (!stage1) {
+    result.status = Status::failure("modal fit: no usable fit even with the smoothest tracks");
+    return result;
+  }
+  theta = best_theta;
+  const Eigen::MatrixXd prior = prior_rows(track, modes, result.track_roughness);
+  std::unique_ptr<VpProblem> final_problem = std::move(stage1);
+
+  // Stage 2: slowly varying mode shapes. The common amplitude and phase of mode j stay with
+  // alpha_j, omega_j (eq 47): only the components orthogonal (in whitened space) to the stage-1
+  // shape u_j vary, as cubic splines whose first differences are penalized.
+  const double length_s = p.tau_s(n - 1);
+  if (outcome.usable && options.shape_knot_spacing_s > 0.0 && c > 1 &&
+      length_s > options.shape_knot_spacing_s) {
+    Eigen::VectorXd beta(final_problem->linear());
+    std::vector<double> scratch(final_problem->residuals());
+    final_problem->evaluate(theta.data(), scratch.data(), nullptr, &beta);
+    const UniformCubicBspline shape(length_s, options.shape_knot_spacing_s);
+    Eigen::MatrixXd functions(n, 1 + shape.size());
+    functions << constant, shape.values(p.tau_s);
+    std::vector<LinearTerm> varying;
+    std::vector<std::pair<int, int>> pairs;
+    for (int j = 0; j < modes; ++j) {
+      Eigen::VectorXcd u(c);
+      for (int k = 0; k < c; ++k) u(k) = Complex(beta(2 * (j * c + k)), beta(2 * (j * c + k) + 1));
+      if (!(u.norm() > 0.0)) u = Eigen::VectorXcd::Unit(c, 0);
+      const Eigen::MatrixXcd basis = complete_basis(u);
+      varying.push_back({j, basis.col(0), 0});
+      for (int d = 1; d < c; ++d)
+        for (int q = 0; q < shape.size(); ++q) {
+          if (q > 0) pairs.emplace_back(static_cast<int>(varying.size()) - 1,
+                                        static_cast<int>(varying.size()));
+          varying.push_back({j, basis.col(d), 1 + q});
+        }
+    }
+    auto probe = std::make_unique<VpProblem>(p, modes, integrals, functions, varying, pairs, 1.0,
+                                             prior);
+    const double weight =
+        options.shape_weight >= 0.0 ? options.shape_weight : choose_shape_weight(*probe, theta, p);
+    auto stage2 = std::make_unique<VpProblem>(p, modes, integrals, functions, varying, pairs,
+                                              weight, prior);
+    Eigen::VectorXd theta2 = theta;
+    const StageOutcome outcome2 = solve(*stage2, theta2, options.max_iterations);
+    result.iterations += outcome2.iterations;
+    if (outcome2.usable) {
+      theta = theta2;
+      outcome = outcome2;
+      final_problem = std::move(stage2);
+      result.shape_weight = weight;
+    }
+  }
+
+  // Final evaluation: linear solution, Jacobian for the posterior covariance.
+  const VpProblem& fp = *final_problem;
+  Eigen::VectorXd beta;
+  Eigen::VectorXd residual(fp.residuals());
+  RowMajor jacobian(fp.residuals(), fp.parameters());
+  if (!outcome.usable || !fp.evaluate(theta.data(), residual.data(), jacobian.data(), &beta)) {
+    result.status = Status::failure("modal fit: the fit failed: " + outcome.message);
+    return result;
+  }
+  if (!outcome.converged)
+    result.status = Status::failure("modal fit: no convergence in " +
+                                    std::to_string(options.max_iterations) +
+                                    " iterations: " + outcome.message);
+  const int rd = fp.data_rows();
+  const double dof = std::max(1, rd - fp.linear() - fp.parameters());
+  const double chi2 = residual.head(rd).squaredNorm() / dof;
+  result.residual_rms_whitened = std::sqrt(residual.head(rd).squaredNorm() / rd);
+  // Posterior covariance of the track coefficients, scaled by the reduced chi-square when the
+  // residual exceeds the pre-onset noise (model error or mis-estimated noise), never below it.
+  const Eigen::MatrixXd info = jacobian.transpose() * jacobian;
+  const Eigen::MatrixXd covariance =
+      std::max(1.0, chi2) * Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(info).pseudoInverse();
+
+  Eigen::MatrixXcd e;
+  fp.oscillations(theta.data(), e);
+  const Eigen::MatrixXd values = track.values(p.tau_s);
+  const Eigen::MatrixXd slopes = track.first_derivatives(p.tau_s);
+  // Time functions and their derivatives as used by the final terms.
+  Eigen::MatrixXd functions = constant, function_slopes = Eigen::MatrixXd::Zero(n, 1);
+  if (fp.terms().size() != static_cast<size_t>(modes * c) || fp.penalty_rows() > 0) {
+    const UniformCubicBspline shape(length_s, options.shape_knot_spacing_s);
+    functions.resize(n, 1 + shape.size());
+    functions << constant, shape.values(p.tau_s);
+    function_slopes.resize(n, 1 + shape.size());
+    function_slopes << Eigen::MatrixXd::Zero(n, 1), shape.first_derivatives(p.tau_s);
+  }
+  result.fitted = Eigen::MatrixXd::Zero(n, c);
+  for (int j = 0; j < modes; ++j) {
+    ModeTrack mt;
+    const Eigen::VectorXd ca = theta.segment(2 * j * m, m), cw = theta.segment((2 * j + 1) * m, m);
+    mt.alpha_per_s = values * ca;
+    mt.omega_rad_per_s = values * cw;
+    mt.alpha_dot_per_s2 = slopes * ca;
+    mt.omega_dot_rad_per_s2 = slopes * cw;
+    mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
+    const Eigen::MatrixXd cov_a = covariance.block(2 * j * m, 2 * j * m, m, m);
+    const Eigen::MatrixXd cov_w = covariance.block((2 * j + 1) * m, (2 * j + 1) * m, m, m);
+    mt.alpha_sd_per_s = ((values * cov_a).cwiseProduct(values)).rowwise().sum().cwiseSqrt();
+    mt.frequency_sd_hz =
+        ((values * cov_w).cwiseProduct(values)).rowwise().sum().cwiseSqrt() / (2.0 * M_PI);
+    // Whitened shape w_j(t) and its slope, then channel units a_j = L w_j.
+    Eigen::MatrixXcd w = Eigen::MatrixXcd::Zero(n, c), w_dot = Eigen::MatrixXcd::Zero(n, c);
+    for (size_t t = 0; t < fp.terms().size(); ++t) {
+      const LinearTerm& term = fp.terms()[t];
+      if (term.mode != j) continue;
+      const Complex coef(beta(2 * t), beta(2 * t + 1));
+      for (int i = 0; i < n; ++i) {
+        w.row(i) += coef * functions(i, term.function) * term.direction.transpose();
+        w_dot.row(i) += coef * function_slopes(i, term.function) * term.direction.transpose();
+      }
+    }
+    const Eigen::MatrixXcd lower = p.cholesky.cast<Complex>();
+    mt.shape = w * lower.transpose();
+    const Eigen::MatrixXcd shape_dot = w_dot * lower.transpose();
+    mt.envelope.resize(n, c);
+    mt.phase_rad.resize(n, c);
+    mt.log_envelope_rate_per_s.resize(n, c);
+    mt.anr_db.resize(n);
+    mt.valid.resize(n);
+    const Eigen::VectorXd log_growth = integrals * ca;  // Re Phi_j
+    const Eigen::VectorXd phase_integral = integrals * cw;  // Im Phi_j, rad
+    Eigen::VectorXd shape_phase(c);
+    for (int i = 0; i < n; ++i) {
+      for (int k = 0; k < c; ++k) {
+        const Complex a = mt.shape(i, k);
+        mt.envelope(i, k) = std::abs(a) * std::exp(log_growth(i));
+        double phase = std::arg(a);  // unwrapped along time: the shape phase varies slowly
+        if (i > 0) phase += 2.0 * M_PI * std::round((shape_phase(k) - phase) / (2.0 * M_PI));
+        shape_phase(k) = phase;
+        mt.phase_rad(i, k) = phase + phase_integral(i);
+        mt.log_envelope_rate_per_s(i, k) =
+            mt.alpha_per_s(i) + (std::norm(a) > 0.0 ? (shape_dot(i, k) * std::conj(a)).real() /
+                                                          std::norm(a)
+                                                    : 0.0);
+        result.fitted(i, k) += (a * e(i, j)).real();
+      }
+      mt.anr_db(i) = 10.0 * std::log10(0.5 * w.row(i).squaredNorm() * std::norm(e(i, j)));
+      mt.valid(i) = result.status.ok && mt.anr_db(i) >= options.anr_threshold_db &&
+                    mt.frequency_sd_hz(i) <= options.max_frequency_sd_hz &&
+                    mt.omega_rad_per_s(i) > 0.0 && std::isfinite(mt.alpha_per_s(i));
+    }
+    result.modes.push_back(std::move(mt));
+  }
+  std::stable_sort(result.modes.begin(), result.modes.end(), [](const auto& a, const auto& b) {
+    return a.omega_rad_per_s.mean() < b.omega_rad_per_s.mean();
+  });
+  return result;
+}
+
+}  // namespace stiffid::estimators

@@ -1,0 +1,88 @@
+#pragma once
+// Parametric time-varying modal fit of a free response (issue 7, the `modal` tfa method; see
+// docs/tfa_modal.md): n damped oscillations whose angular frequency omega_j(t) and growth rate
+// alpha_j(t) are shared by all channels, with slowly varying complex mode shapes, fitted to the
+// whole post-onset record at once by variable projection on Ceres.
+//
+// Model, channel k, time tau from the first fitted sample (Piovesan 2012 eqs 5, 33, 39):
+//   x_k(tau) = sum_j Re( a_jk(tau) exp(Phi_j(tau)) ),
+//   Phi_j(tau) = int_0^tau (alpha_j(s) + i omega_j(s)) ds,
+// omega_j, alpha_j cubic B-splines (knots ~0.1 s), a_jk(tau) complex cubic B-splines with coarse
+// knots whose changes are penalized (they stay constant unless the data ask otherwise). The
+// amplitudes a are linear and eliminated (variable projection, Golub & Pereyra 2003, with
+// Kaufman's Jacobian); residuals are whitened by the pre-onset noise covariance.
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "data/error.hpp"
+#include "estimators/matrix_pencil.hpp"
+
+namespace stiffid::estimators {
+
+struct DampedModesOptions {
+  int modes = 2;                        ///< n damped oscillations (degrees of freedom)
+  double decimate_hz = 200.0;           ///< rate after zero-phase low-pass + decimation, Hz; <= 0:
+                                        ///< keep the input rate (no filter)
+  double skip_s = 0.025;                ///< after the onset, not free (the pulse), s; the fit also
+                                        ///< starts the filter half-length later
+  double noise_window_s = 0.2;          ///< before the onset, for the noise covariance, s
+  double knot_spacing_s = 0.1;          ///< knot spacing of omega_j(t), alpha_j(t), s
+  double shape_knot_spacing_s = 0.5;    ///< knot spacing of the mode shapes a_jk(t), s; <= 0:
+                                        ///< constant mode shapes
+  double shape_weight = -1.0;           ///< lambda of the penalty on shape changes (whitened
+                                        ///< units, dimensionless); < 0: chosen by GCV
+  double track_roughness = -1.0;        ///< prior SD of second differences of the omega (rad/s)
+                                        ///< and alpha (1/s) spline coefficients; < 0: chosen by
+                                        ///< GCV from 0.003 .. 3 (continuation smooth -> rough)
+  double init_window_s = 0.5;           ///< sliding matrix-pencil windows for the start, s
+  double anr_threshold_db = 0.0;        ///< validity: amplitude-to-noise ratio at least this, dB
+  double max_frequency_sd_hz = 0.1;     ///< validity: posterior SD of f_j(t) at most this, Hz
+  int max_iterations = 100;             ///< Levenberg-Marquardt iterations per stage
+};
+
+/// One mode's tracks over the fitted times (T samples, C channels).
+struct ModeTrack {
+  Eigen::VectorXd frequency_hz;            ///< [T] f_j = omega_j / 2 pi, Hz
+  Eigen::VectorXd omega_rad_per_s;         ///< [T] omega_j(t) = d/dt phase (eq 6), rad/s
+  Eigen::VectorXd omega_dot_rad_per_s2;    ///< [T] d omega_j / dt, rad/s^2 (eqs 45-46)
+  Eigen::VectorXd alpha_per_s;             ///< [T] alpha_j(t), 1/s; eq 47 sign (< 0 decays);
+                                           ///< decay rate = -alpha_j
+  Eigen::VectorXd alpha_dot_per_s2;        ///< [T] d alpha_j / dt, 1/s^2 (eq 46, corrected)
+  Eigen::MatrixXcd shape;                  ///< (T x C) a_jk(t): complex mode shape times modal
+                                           ///< amplitude at tau = 0 (eq 38-39), channel units
+  Eigen::MatrixXd envelope;                ///< (T x C) A_jk(t) = |a_jk| exp(Re Phi_j), channel units
+  Eigen::MatrixXd phase_rad;               ///< (T x C) arg a_jk + Im Phi_j, continuous, rad
+  Eigen::MatrixXd log_envelope_rate_per_s; ///< (T x C) d/dt ln A_jk = alpha_j + d/dt ln|a_jk|
+                                           ///< (eq 47 per channel), 1/s
+  Eigen::VectorXd anr_db;                  ///< [T] amplitude-to-noise ratio, dB (docs/tfa_modal.md)
+  Eigen::VectorXd frequency_sd_hz;         ///< [T] posterior SD of f_j, Hz
+  Eigen::VectorXd alpha_sd_per_s;          ///< [T] posterior SD of alpha_j, 1/s
+  Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] ANR and SD within limits, fit converged
+};
+
+struct DampedModesResult {
+  Status status;                    ///< failure: start not found, fit did not converge (then every
+                                    ///< valid flag is false)
+  Eigen::VectorXd t_s;              ///< [T] fitted sample times, s (same clock as the input)
+  std::vector<ModeTrack> modes;     ///< [n] in ascending mean frequency
+  double rate_hz = 0.0;             ///< sample rate of the fitted data, Hz
+  Eigen::MatrixXd noise_covariance; ///< (C x C) of the filtered pre-onset noise, channel units^2
+  Eigen::MatrixXd fitted;           ///< (T x C) the model at t_s, channel units
+  Eigen::MatrixXd data;             ///< (T x C) filtered, decimated data at t_s, channel units
+  MatrixPencilResult start;         ///< global matrix pencil over the fitted samples
+  double shape_weight = 0.0;        ///< shape-change penalty used
+  double track_roughness = 0.0;     ///< track roughness prior SD used, rad/s and 1/s
+  double residual_rms_whitened = 0.0;  ///< RMS whitened data residual (1 = noise level)
+  int iterations = 0;               ///< Levenberg-Marquardt iterations, all stages
+};
+
+/// Fits n damped modes to the free response in `deviation` ((S x C), channel units, typically
+/// rad) sampled at `sample_rate_hz`, the first sample at `start_time_s`, after the pulse at
+/// `onset_s` (same clock). Throws InputError when the record has fewer than noise_window_s before
+/// the onset or fewer than 0.5 s of free response, or options are out of range.
+DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& deviation,
+                                   double sample_rate_hz, double start_time_s, double onset_s,
+                                   const DampedModesOptions& options);
+
+}  // namespace stiffid::estimators

@@ -1,0 +1,224 @@
+#include <boost/test/unit_test.hpp>
+#include <cmath>
+#include <complex>
+#include <functional>
+#include <random>
+
+#include "data/error.hpp"
+#include "estimators/damped_modes.hpp"
+
+using stiffid::InputError;
+using stiffid::estimators::DampedModesOptions;
+using stiffid::estimators::DampedModesResult;
+using stiffid::estimators::fit_damped_modes;
+
+namespace {
+
+constexpr double kRateHz = 4000.0;  // as the paper's simulations: 5 s at 4 kHz, pulse at 2.5 s
+constexpr double kOnsetS = 2.5;
+constexpr double kFreeS = 2.52;     // end of the 20 ms pulse: the free response starts here
+
+// A damped oscillation with closed-form phase integral: x_k(t) = Re(a_k exp(Phi(t - kFreeS))),
+// Phi(tau) = int_0^tau alpha + i omega.
+struct ClosedFormMode {
+  std::function<double(double)> f_hz;          // f(tau)
+  std::function<double(double)> alpha_per_s;   // alpha(tau)
+  std::function<std::complex<double>(double)> phi;  // Phi(tau), closed form
+  std::complex<double> a0, a1;
+};
+
+double sigmoid(double x) { return 1.0 / (1.0 + std::exp(-x)); }
+// int_0^tau sigmoid(k (s - c)) ds = (ln(1 + e^{k(tau - c)}) - ln(1 + e^{-k c})) / k
+double sigmoid_integral(double tau, double k, double c) {
+  return (std::log1p(std::exp(k * (tau - c))) - std::log1p(std::exp(-k * c))) / k;
+}
+
+Eigen::MatrixXd response(const std::vector<ClosedFormMode>& modes) {
+  const int s = static_cast<int>(5.0 * kRateHz);
+  Eigen::MatrixXd x = Eigen::MatrixXd::Zero(s, 2);
+  for (int i = 0; i < s; ++i) {
+    const double tau = i / kRateHz - kFreeS;
+    if (tau < 0.0) continue;
+    for (const auto& m : modes) {
+      const std::complex<double> e = std::exp(m.phi(tau));
+      x(i, 0) += (m.a0 * e).real();
+      x(i, 1) += (m.a1 * e).real();
+    }
+  }
+  return x;
+}
+
+void add_noise(Eigen::MatrixXd& x, double snr_db, std::uint64_t seed) {
+  // SNR relative to the RMS of the free response over both channels (paper: RMS of the signal).
+  const int first = static_cast<int>(kOnsetS * kRateHz);
+  const double rms = std::sqrt(x.bottomRows(x.rows() - first).squaredNorm() /
+                               double((x.rows() - first) * x.cols()));
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, rms * std::pow(10.0, -snr_db / 20.0));
+  for (Eigen::Index i = 0; i < x.size(); ++i) x.data()[i] += noise(rng);
+}
+
+struct Errors {
+  double f_rel = 0.0, alpha_rel = 0.0;  // RMS relative errors
+  double alpha_z = 0.0;                 // RMS of alpha error / posterior SD
+  int samples = 0, valid = 0;
+};
+
+Errors track_errors(const DampedModesResult& r, int j, const ClosedFormMode& truth, double from_s,
+                    double to_s) {
+  Errors e;
+  double sf = 0.0, sa = 0.0, sz = 0.0;
+  for (Eigen::Index i = 0; i < r.t_s.size(); ++i) {
+    if (r.t_s(i) < from_s || r.t_s(i) > to_s) continue;
+    const double tau = r.t_s(i) - kFreeS;
+    ++e.samples;
+    e.valid += r.modes[j].valid(i) ? 1 : 0;
+    sf += std::pow(r.modes[j].frequency_hz(i) / truth.f_hz(tau) - 1.0, 2);
+    sa += std::pow(r.modes[j].alpha_per_s(i) / truth.alpha_per_s(tau) - 1.0, 2);
+    sz += std::pow((r.modes[j].alpha_per_s(i) - truth.alpha_per_s(tau)) / r.modes[j].alpha_sd_per_s(i), 2);
+  }
+  e.alpha_z = std::sqrt(sz / e.samples);
+  e.f_rel = std::sqrt(sf / e.samples);
+  e.alpha_rel = std::sqrt(sa / e.samples);
+  return e;
+}
+
+// Two modes 1 Hz apart (2.4 and 3.4 Hz), the decay of both following a sigmoid in time (k = 4/s,
+// centred 1 s into the response) that doubles it, as co-contraction would.
+std::vector<ClosedFormMode> close_modes(double weak_amplitude) {
+  auto mode = [](double f0, double alpha0, std::complex<double> a0, std::complex<double> a1) {
+    ClosedFormMode m;
+    m.f_hz = [f0](double) { return f0; };
+    m.alpha_per_s = [alpha0](double tau) { return alpha0 * (1.0 + sigmoid(4.0 * (tau - 1.0))); };
+    m.phi = [f0, alpha0](double tau) {
+      return std::complex<double>(alpha0 * (tau + sigmoid_integral(tau, 4.0, 1.0)),
+                                  2.0 * M_PI * f0 * tau);
+    };
+    m.a0 = a0;
+    m.a1 = a1;
+    return m;
+  };
+  return {mode(2.4, -1.0, {1.0, 0.0}, {0.45, 0.05}),
+          mode(3.4, -1.3, {-0.4 * weak_amplitude, 0.1 * weak_amplitude}, {weak_amplitude, 0.0})};
+}
+
+double energy_fraction(const std::vector<ClosedFormMode>& modes, int j) {
+  const Eigen::MatrixXd all = response(modes);
+  const Eigen::MatrixXd one = response({modes[j]});
+  return one.squaredNorm() / all.squaredNorm();
+}
+
+}  // namespace
+
+BOOST_AUTO_TEST_CASE(noise_free_tracks_are_exact_when_the_spline_can_represent_them) {
+  // alpha_j linear in time and omega_j constant lie in the cubic spline space: the only errors
+  // are the decimation filter's action on a non-stationary envelope (relative O(alpha' s_h^2) with
+  // s_h ~ 3 ms the filter's RMS width: ~1e-5) and the solver's tolerance.
+  ClosedFormMode m1, m2;
+  m1.f_hz = [](double) { return 2.4; };
+  m1.alpha_per_s = [](double tau) { return -1.5 - 0.4 * tau; };
+  m1.phi = [](double tau) {
+    return std::complex<double>(-1.5 * tau - 0.2 * tau * tau, 2.0 * M_PI * 2.4 * tau);
+  };
+  m1.a0 = {1.0, 0.0};
+  m1.a1 = std::polar(0.5, 0.3);
+  m2.f_hz = [](double) { return 3.4; };
+  m2.alpha_per_s = [](double tau) { return -2.0 + 0.3 * tau; };
+  m2.phi = [](double tau) {
+    return std::complex<double>(-2.0 * tau + 0.15 * tau * tau, 2.0 * M_PI * 3.4 * tau);
+  };
+  m2.a0 = {-0.1, 0.05};
+  m2.a1 = {0.0, 0.2};
+  const Eigen::MatrixXd x = response({m1, m2});
+  const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  BOOST_REQUIRE_EQUAL(r.modes.size(), 2u);
+  for (int j = 0; j < 2; ++j) {
+    const Errors e = track_errors(r, j, j == 0 ? m1 : m2, 2.6, 4.9);
+    BOOST_TEST_MESSAGE("mode " << j << ": f " << e.f_rel << ", alpha " << e.alpha_rel);
+    BOOST_CHECK_SMALL(e.f_rel, 1e-5);
+    BOOST_CHECK_SMALL(e.alpha_rel, 1e-3);
+    BOOST_CHECK_EQUAL(e.valid, e.samples);
+  }
+  // The amplitude-to-noise ratio follows each mode's envelope: over 1 s it changes by
+  // 20 log10(e) (Re Phi(t2) - Re Phi(t1)) dB (the noise level cancels). The tracks are exact to
+  // ~1e-6, so 1e-3 dB.
+  const Eigen::Index i1 = 20, i2 = i1 + static_cast<Eigen::Index>(r.rate_hz);
+  for (int j = 0; j < 2; ++j) {
+    const auto& phi = (j == 0 ? m1 : m2).phi;
+    const double expected = 20.0 / std::log(10.0) *
+                            (phi(r.t_s(i2) - kFreeS).real() - phi(r.t_s(i1) - kFreeS).real());
+    BOOST_CHECK_SMALL(r.modes[j].anr_db(i2) - r.modes[j].anr_db(i1) - expected, 1e-3);
+  }
+  // Mode shapes: amplitude ratio and relative phase of each mode (eqs 37-42), constant here. The
+  // filter's pass-band gain (ripple <= 1e-3 at 60 dB) cancels in the ratio.
+  for (Eigen::Index i = 0; i < r.t_s.size(); i += 50) {
+    const std::complex<double> ratio1 = r.modes[0].shape(i, 1) / r.modes[0].shape(i, 0);
+    const std::complex<double> ratio2 = r.modes[1].shape(i, 1) / r.modes[1].shape(i, 0);
+    BOOST_CHECK_SMALL(std::abs(ratio1 - m1.a1 / m1.a0), 1e-4);
+    BOOST_CHECK_SMALL(std::abs(ratio2 - m2.a1 / m2.a0), 1e-4);
+  }
+}
+
+BOOST_AUTO_TEST_CASE(close_modes_with_a_weak_one_at_20_db_within_one_percent) {
+  const std::vector<ClosedFormMode> modes = close_modes(0.26);
+  const double weak = energy_fraction(modes, 1);
+  BOOST_TEST_MESSAGE("weak mode energy fraction " << weak);
+  BOOST_REQUIRE(weak > 0.04 && weak < 0.06);  // the case asked for: 5 % of the energy
+  Eigen::MatrixXd x = response(modes);
+  add_noise(x, 20.0, 7);
+  const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  for (int j = 0; j < 2; ++j) {
+    // Issue 7 target for the frequencies: 1 % (RMS relative error over 2.6-4.5 s). The decay rates
+    // are held to their posterior SD instead (RMS of error / SD <= 2.5; 1 when calibrated, the
+    // margin for the noise covariance from 0.155 s of pre-onset data, +-20 % in variance): with
+    // alpha free to vary every 0.1 s, the weak mode's decay at 20 dB is known to only ~2-4 % (the
+    // Cramer-Rao bound of a constant decay over the record is already 0.3 %), see
+    // docs/tfa_modal.md; the 1 % target is reported there, not met without a mode tie.
+    const Errors e = track_errors(r, j, modes[j], 2.6, 4.5);
+    BOOST_TEST_MESSAGE("mode " << j << ": f " << e.f_rel << ", alpha " << e.alpha_rel
+                               << ", alpha error / SD " << e.alpha_z << ", valid " << e.valid
+                               << "/" << e.samples);
+    BOOST_CHECK_SMALL(e.f_rel, 0.01);
+    BOOST_CHECK_SMALL(e.alpha_z, 2.5);
+    // Both modes are well above the noise for the first 1.5 s (ANR > 15 dB): all valid there.
+    const Errors early = track_errors(r, j, modes[j], 2.6, 4.0);
+    BOOST_CHECK_EQUAL(early.valid, early.samples);
+  }
+  // Same seed, same bits (deterministic fit).
+  const DampedModesResult again = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+  BOOST_CHECK(again.modes[1].alpha_per_s == r.modes[1].alpha_per_s);
+}
+
+BOOST_AUTO_TEST_CASE(a_mode_sinking_into_the_noise_is_flagged_invalid) {
+  // The weak mode decays fast (alpha -6 1/s) and is lost in the 10 dB noise within ~0.5 s: its
+  // track must be flagged invalid there, and wherever it is flagged valid it must be right.
+  std::vector<ClosedFormMode> modes = close_modes(0.3);
+  modes[1].alpha_per_s = [](double) { return -6.0; };
+  modes[1].phi = [](double tau) { return std::complex<double>(-6.0 * tau, 2.0 * M_PI * 3.4 * tau); };
+  Eigen::MatrixXd x = response(modes);
+  add_noise(x, 10.0, 11);
+  const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+  BOOST_REQUIRE(!r.modes.empty());
+  const auto& weak = r.modes[1];
+  int valid_late = 0, valid_wrong = 0;
+  for (Eigen::Index i = 0; i < r.t_s.size(); ++i) {
+    if (!weak.valid(i)) continue;
+    if (r.t_s(i) > 4.0) ++valid_late;  // 1.5 s in: the mode is 80 dB below its start
+    // Valid samples: within 3 % (a few posterior SDs at the validity limit of 0.1 Hz).
+    if (std::abs(weak.frequency_hz(i) / 3.4 - 1.0) > 0.03) ++valid_wrong;
+  }
+  BOOST_CHECK_EQUAL(valid_late, 0);
+  BOOST_CHECK_EQUAL(valid_wrong, 0);
+}
+
+BOOST_AUTO_TEST_CASE(rejects_records_without_noise_window_or_free_response) {
+  const Eigen::MatrixXd x = response(close_modes(0.2));
+  DampedModesOptions o;
+  BOOST_CHECK_THROW(fit_damped_modes(x, kRateHz, 0.0, 0.05, o), InputError);  // no pre-onset
+  BOOST_CHECK_THROW(fit_damped_modes(x, kRateHz, 0.0, 4.8, o), InputError);   // 0.2 s after
+  BOOST_CHECK_THROW(fit_damped_modes(x, kRateHz, 0.0, 6.0, o), InputError);   // outside
+  o.knot_spacing_s = 0.0;
+  BOOST_CHECK_THROW(fit_damped_modes(x, kRateHz, 0.0, kOnsetS, o), InputError);
+}
