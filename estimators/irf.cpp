@@ -1,0 +1,285 @@
+#include "estimators/irf.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <vector>
+
+#include "estimators/correlation.hpp"
+#include "estimators/fft.hpp"
+
+namespace stiffid::estimators {
+namespace {
+
+// Below this reciprocal condition number (1-norm estimate) the Cholesky solution of Psi H = Phi
+// carries no correct digit worth reporting (relative error ~ eps / rcond > 1e-4): perfectly coupled
+// inputs or inputs without power over part of the band.
+constexpr double kMinReciprocalCondition = 1e-12;
+
+void validate(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
+              const Eigen::Ref<const Eigen::MatrixXd>& outputs, double sample_rate_hz,
+              const IrfOptions& options) {
+  if (inputs.cols() < 1 || outputs.cols() < 1) {
+    throw InputError("IRF: need at least one input and one output channel");
+  }
+  if (inputs.rows() != outputs.rows()) {
+    throw InputError("IRF: inputs have " + std::to_string(inputs.rows()) + " samples, outputs " +
+                     std::to_string(outputs.rows()));
+  }
+  if (!(sample_rate_hz > 0.0) || !std::isfinite(sample_rate_hz)) {
+    throw InputError("IRF: sample rate must be a positive number of Hz");
+  }
+  if (options.first_lag > options.last_lag) {
+    throw InputError("IRF lags: first lag " + std::to_string(options.first_lag) +
+                     " samples is after the last lag " + std::to_string(options.last_lag));
+  }
+  const long span = static_cast<long>(options.last_lag) - options.first_lag;
+  if (inputs.rows() <= span) {
+    throw InputError("IRF: " + std::to_string(inputs.rows()) + " samples, need more than the " +
+                     std::to_string(span + 1) + " lags of the IRF");
+  }
+  if (options.inverse == IrfInverse::rank) {
+    const long full = inputs.cols() * (span + 1);
+    if (options.rank < 1 || options.rank > full) {
+      throw InputError("IRF pseudo-inverse: rank must be in 1.." + std::to_string(full) +
+                       " (inputs x lags), got " + std::to_string(options.rank));
+    }
+  }
+}
+
+// Psi (N*L x N*L), eq 10-11: block (i, k) holds phi_{x_i x_k}(tau - s) at (tau - A, s - A).
+Eigen::MatrixXd assemble_psi(const Eigen::MatrixXd& phi_inputs, int inputs, int lags, int max_lag) {
+  Eigen::MatrixXd psi(static_cast<Eigen::Index>(inputs) * lags,
+                      static_cast<Eigen::Index>(inputs) * lags);
+  int pair = 0;
+  for (int i = 0; i < inputs; ++i) {
+    for (int k = i; k < inputs; ++k, ++pair) {
+      const auto r = phi_inputs.col(pair);
+      for (int b = 0; b < lags; ++b) {
+        // Column s = A + b holds lags tau - s = a - b for rows a = 0..L-1.
+        psi.block(static_cast<Eigen::Index>(i) * lags, static_cast<Eigen::Index>(k) * lags + b,
+                  lags, 1) = r.segment(max_lag - b, lags);
+      }
+      if (k != i) {
+        psi.block(static_cast<Eigen::Index>(k) * lags, static_cast<Eigen::Index>(i) * lags, lags,
+                  lags) = psi.block(static_cast<Eigen::Index>(i) * lags,
+                                    static_cast<Eigen::Index>(k) * lags, lags, lags)
+                              .transpose();
+      }
+    }
+  }
+  return psi;
+}
+
+struct Solution {
+  Status status;
+  Eigen::MatrixXd coefficients;  // H = dt h, (N*L x M)
+  int rank = 0;
+  double condition_number = 0.0;
+  Eigen::VectorXd mdl;
+};
+
+Solution solve_full(const Eigen::MatrixXd& psi, const Eigen::MatrixXd& phi) {
+  Solution s;
+  const Eigen::LLT<Eigen::MatrixXd> llt(psi);
+  const double rcond = llt.info() == Eigen::Success ? llt.rcond() : 0.0;
+  s.condition_number = rcond > 0.0 ? 1.0 / rcond : std::numeric_limits<double>::infinity();
+  if (llt.info() != Eigen::Success || rcond < kMinReciprocalCondition) {
+    std::ostringstream msg;
+    msg << "IRF: the input correlation matrix Psi (eq 11) is singular to working precision "
+        << "(reciprocal condition number " << rcond
+        << "): inputs perfectly coupled or without power over part of the band; "
+        << "use the pseudo-inverse (--pinv)";
+    s.status = Status::failure(msg.str());
+    return s;
+  }
+  s.coefficients = llt.solve(phi);
+  s.rank = static_cast<int>(psi.rows());
+  return s;
+}
+
+Solution solve_pseudo_inverse(const Eigen::MatrixXd& psi, const Eigen::MatrixXd& phi,
+                              const Eigen::VectorXd& output_power, int samples,
+                              const IrfOptions& options) {
+  Solution s;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(psi);
+  if (eig.info() != Eigen::Success) {
+    s.status = Status::failure("IRF: eigendecomposition of Psi did not converge");
+    return s;
+  }
+  const Eigen::VectorXd& w = eig.eigenvalues();  // ascending
+  const Eigen::MatrixXd& v = eig.eigenvectors();
+  const int size = static_cast<int>(w.size());
+  const int outputs = static_cast<int>(phi.cols());
+  const double largest = w(size - 1);
+  s.condition_number =
+      w(0) > 0.0 ? largest / w(0) : std::numeric_limits<double>::infinity();
+  const double floor = size * std::numeric_limits<double>::epsilon() * largest;
+
+  const Eigen::MatrixXd projection = v.transpose() * phi;  // (N*L x M)
+  std::vector<int> usable;
+  Eigen::MatrixXd contribution = Eigen::MatrixXd::Zero(size, outputs);  // fraction of var(y_j)
+  for (int k = 0; k < size; ++k) {
+    if (!(w(k) > floor)) continue;
+    usable.push_back(k);
+    contribution.row(k) =
+        projection.row(k).array().square() / w(k) / output_power.transpose().array();
+  }
+  if (usable.empty()) {
+    s.status = Status::failure("IRF: the input correlation matrix Psi is zero: no input power");
+    return s;
+  }
+  const Eigen::VectorXd total = contribution.rowwise().sum();
+  // Decreasing contribution; ties broken by the larger eigenvalue, so the order is deterministic.
+  std::stable_sort(usable.begin(), usable.end(), [&](int a, int b) {
+    return total(a) != total(b) ? total(a) > total(b) : w(a) > w(b);
+  });
+  const int count = static_cast<int>(usable.size());
+
+  int keep = count;
+  if (options.inverse == IrfInverse::rank) {
+    keep = std::min(options.rank, count);
+  } else {
+    const double n = static_cast<double>(samples) * outputs;
+    s.mdl.resize(count);
+    double residual = static_cast<double>(outputs);  // sum_j (1 - VAF_j) with no vector kept
+    for (int m = 1; m <= count; ++m) {
+      residual -= total(usable[m - 1]);
+      s.mdl(m - 1) = (1.0 + static_cast<double>(m) * outputs * std::log(n) / n) *
+                     std::max(residual, 0.0);
+    }
+    Eigen::Index best = 0;
+    s.mdl.minCoeff(&best);
+    keep = static_cast<int>(best) + 1;
+  }
+  s.coefficients = Eigen::MatrixXd::Zero(psi.rows(), outputs);
+  for (int m = 0; m < keep; ++m) {
+    const int k = usable[m];
+    s.coefficients += v.col(k) * (projection.row(k) / w(k));
+  }
+  s.rank = keep;
+  return s;
+}
+
+// Predicted outputs (S x M): dt * sum_i h_ji * x_i as products of padded spectra. The kernel is
+// stored at tau mod n; n >= S + max(|A|, |B|) keeps the first S samples free of wrap-around.
+Eigen::MatrixXd predict(const PaddedSpectra& spectra, const Eigen::MatrixXd& coefficients,
+                        int inputs, int outputs, int first_lag, int lags) {
+  const int n = spectra.fft_length();
+  Eigen::MatrixXd kernels = Eigen::MatrixXd::Zero(n, static_cast<Eigen::Index>(inputs) * outputs);
+  for (int j = 0; j < outputs; ++j) {
+    for (int i = 0; i < inputs; ++i) {
+      for (int a = 0; a < lags; ++a) {
+        const int tau = first_lag + a;
+        kernels((tau % n + n) % n, i + inputs * j) =
+            coefficients(static_cast<Eigen::Index>(i) * lags + a, j);
+      }
+    }
+  }
+  RealFft forward(n, inputs * outputs);
+  const Eigen::MatrixXcd kernel_spectra = forward.forward(kernels);
+  Eigen::MatrixXcd products = Eigen::MatrixXcd::Zero(kernel_spectra.rows(), outputs);
+  for (int j = 0; j < outputs; ++j) {
+    for (int i = 0; i < inputs; ++i) {
+      products.col(j) += spectra.spectra().col(i).cwiseProduct(kernel_spectra.col(i + inputs * j));
+    }
+  }
+  RealFft inverse(n, outputs);
+  return inverse.inverse(products).topRows(spectra.samples());
+}
+
+}  // namespace
+
+Eigen::VectorXd IrfResult::irf(int output, int input) const {
+  const int lags = static_cast<int>(lag_s.size());
+  return h.col(output).segment(static_cast<Eigen::Index>(input) * lags, lags);
+}
+
+IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
+                       const Eigen::Ref<const Eigen::MatrixXd>& outputs, double sample_rate_hz,
+                       const IrfOptions& options) {
+  validate(inputs, outputs, sample_rate_hz, options);
+  const int samples = static_cast<int>(inputs.rows());
+  const int n_in = static_cast<int>(inputs.cols());
+  const int n_out = static_cast<int>(outputs.cols());
+  const int first = options.first_lag;
+  const int lags = options.last_lag - first + 1;
+  const int max_lag = std::max({lags - 1, std::abs(first), std::abs(options.last_lag)});
+
+  IrfResult result;
+  result.sample_rate_hz = sample_rate_hz;
+  result.first_lag = first;
+  result.last_lag = options.last_lag;
+  result.inputs = n_in;
+  result.outputs = n_out;
+  result.full_rank = n_in * lags;
+  result.lag_s = Eigen::VectorXd::LinSpaced(lags, first, options.last_lag) / sample_rate_hz;
+
+  Eigen::MatrixXd signals(samples, n_in + n_out);
+  signals << inputs, outputs;
+  const PaddedSpectra spectra(signals, max_lag, /*remove_mean=*/true);
+  std::vector<ChannelPair> pairs;
+  for (int i = 0; i < n_in; ++i) {
+    for (int k = i; k < n_in; ++k) pairs.push_back({i, k});
+  }
+  const int input_pairs = static_cast<int>(pairs.size());
+  for (int j = 0; j < n_out; ++j) {
+    for (int i = 0; i < n_in; ++i) pairs.push_back({i, n_in + j});
+  }
+  const Eigen::MatrixXd phi_all = spectra.correlate(pairs);
+
+  const Eigen::MatrixXd psi = assemble_psi(phi_all.leftCols(input_pairs), n_in, lags, max_lag);
+  Eigen::MatrixXd phi_xy(static_cast<Eigen::Index>(n_in) * lags, n_out);
+  for (int j = 0; j < n_out; ++j) {
+    for (int i = 0; i < n_in; ++i) {
+      phi_xy.col(j).segment(static_cast<Eigen::Index>(i) * lags, lags) =
+          phi_all.col(input_pairs + i + n_in * j).segment(first + max_lag, lags);
+    }
+  }
+  const Eigen::MatrixXd centred = outputs.rowwise() - spectra.means().tail(n_out);
+  const Eigen::VectorXd output_power = centred.colwise().squaredNorm().transpose() / samples;
+  for (int j = 0; j < n_out; ++j) {
+    if (!(output_power(j) > 0.0)) {
+      result.status = Status::failure("IRF: output " + std::to_string(j) +
+                                      " has zero variance; VAF is undefined");
+      return result;
+    }
+  }
+
+  Solution solution = options.inverse == IrfInverse::full
+                          ? solve_full(psi, phi_xy)
+                          : solve_pseudo_inverse(psi, phi_xy, output_power, samples, options);
+  result.condition_number = solution.condition_number;
+  result.mdl = std::move(solution.mdl);
+  if (!solution.status.ok) {
+    result.status = solution.status;
+    return result;
+  }
+  result.rank = solution.rank;
+  const Eigen::MatrixXd& coefficients = solution.coefficients;  // dt * h
+  result.h = coefficients * sample_rate_hz;
+
+  // Eqs 12-13 with phi_xy(+tau) (see irf.hpp): sum_tau (dt h)(tau) phi_xy(tau) = E[yhat^2].
+  const Eigen::VectorXd explained =
+      (phi_xy.array() * coefficients.array()).colwise().sum().transpose();
+  result.vaf_correlation_percent = 100.0 * explained.cwiseQuotient(output_power);
+  result.r2_correlation_percent = 100.0 * explained.sum() / output_power.sum();
+
+  result.predicted = predict(spectra, coefficients, n_in, n_out, first, lags);
+  const Eigen::MatrixXd residual = centred - result.predicted;
+  result.vaf_percent.resize(n_out);
+  for (int j = 0; j < n_out; ++j) {
+    const double residual_variance =
+        (residual.col(j).array() - residual.col(j).mean()).square().sum() / samples;
+    result.vaf_percent(j) = 100.0 * (1.0 - residual_variance / output_power(j));
+  }
+  result.r2_percent = 100.0 * (1.0 - residual.squaredNorm() / centred.squaredNorm());
+  return result;
+}
+
+}  // namespace stiffid::estimators
