@@ -65,8 +65,9 @@ struct CrossSpectra {
 };
 
 /// Welch cross-spectral matrices of the columns of `signals` (S samples x C channels) sampled at
-/// `sample_rate_hz` (Hz). All segments of all channels go through one batched real FFT
-/// (RealFft). Throws InputError when S < segment_length (naming `source`), on bad options or a
+/// `sample_rate_hz` (Hz). Segments of all channels go through one batched real-FFT plan
+/// (RealFft, made once), 32 segments of every channel per call, and the cross products accumulate
+/// per bin as they come, so memory stays O(C^2 F + 32 C fft_length) for any record length. Throws InputError when S < segment_length (naming `source`), on bad options or a
 /// non-positive rate.
 CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signals,
                                  double sample_rate_hz, const WelchOptions& options,
