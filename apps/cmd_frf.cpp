@@ -24,8 +24,8 @@
 //   with --stiffness (needs as many outputs as inputs):
 //   "stiffness": {IN: {OUT: {"re": [F], "im": [F]}}}     H(f)^-1, input unit per output unit (N/m)
 // Only these keys are written (other tools parse this contract).
-// Exit 2 on bad input (file, column, flag), 1 when the inputs are perfectly coupled (Gxx singular in
-// the band with input power) or H is singular there with --stiffness; no file is written then.
+// Exit 2 on bad input (file, column, flag), 1 when the inputs are perfectly coupled (Gxx singular
+// in the band with input power) or H is singular there with --stiffness; no file is written then.
 
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -61,8 +61,8 @@ void check_names(const data::Trial& trial, const std::vector<std::string>& names
     if (trial.find(name) >= 0) continue;
     std::string columns;
     for (const auto& c : trial.names) columns += " " + c;
-    throw InputError(trial.source + ":1: " + flag + ": no column '" + name + "' in the header (columns:" +
-                     columns + ")");
+    throw InputError(trial.source + ":1: " + flag + ": no column '" + name +
+                     "' in the header (columns:" + columns + ")");
   }
 }
 
@@ -96,7 +96,8 @@ nlohmann::json complex_series(const std::vector<Eigen::MatrixXcd>& m, int r, int
 }
 
 nlohmann::json band(const estimators::ErrorBand& b, int r, int c) {
-  return {{"eps", series(b.eps, r, c)}, {"lower", series(b.lower, r, c)},
+  return {{"eps", series(b.eps, r, c)},
+          {"lower", series(b.lower, r, c)},
           {"upper", series(b.upper, r, c)}};
 }
 
@@ -147,7 +148,8 @@ void run(const FrfCommandOptions& cli) {
                      std::to_string(cli.nfft));
   }
   if (!std::isfinite(cli.overlap) || cli.overlap < 0.0 || cli.overlap >= 1.0) {
-    throw InputError("--overlap: expected a fraction in [0, 1), got " + std::to_string(cli.overlap));
+    throw InputError("--overlap: expected a fraction in [0, 1), got " +
+                     std::to_string(cli.overlap));
   }
   if (cli.sample_rate_hz < 0.0 || !std::isfinite(cli.sample_rate_hz)) {
     throw InputError("--fs: expected a positive sampling rate in Hz");

@@ -55,7 +55,8 @@ double normalized_error(double g2, double dof, double factor, double power) {
 }
 
 void resize_band(ErrorBand& band, int bins, int rows, int cols) {
-  for (auto* v : {&band.eps, &band.lower, &band.upper}) v->assign(bins, Eigen::MatrixXd(rows, cols));
+  for (auto* v : {&band.eps, &band.lower, &band.upper})
+    v->assign(bins, Eigen::MatrixXd(rows, cols));
 }
 
 void set_band(ErrorBand& band, int f, int r, int c, double value, double eps, double c_factor,
@@ -131,15 +132,16 @@ FrfResult estimate_frf(const CrossSpectra& spectra, int inputs, const FrfOptions
     const Eigen::MatrixXcd gxx = g.topLeftCorner(n, n);
     const Eigen::MatrixXcd gxy = g.topRightCorner(n, m);
 
-    const Eigen::VectorXd lambda = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(
-                                       gxx, Eigen::EigenvaluesOnly).eigenvalues();
+    const Eigen::VectorXd lambda =
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(gxx, Eigen::EigenvaluesOnly).eigenvalues();
     out.condition_number[f] = lambda[0] > 0.0 ? lambda[n - 1] / lambda[0] : kInf;
     const Eigen::VectorXd d = gxx.diagonal().real();
     if ((d.array() > 0.0).all()) {
       const Eigen::VectorXd scale = d.cwiseSqrt().cwiseInverse();
       const Eigen::MatrixXcd normalized = scale.asDiagonal() * gxx * scale.asDiagonal();
-      const Eigen::VectorXd mu = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(
-                                     normalized, Eigen::EigenvaluesOnly).eigenvalues();
+      const Eigen::VectorXd mu =
+          Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(normalized, Eigen::EigenvaluesOnly)
+              .eigenvalues();
       out.coupling_reciprocal_condition[f] = std::max(0.0, mu[0]) / mu[n - 1];
     } else {
       out.coupling_reciprocal_condition[f] = 0.0;
@@ -230,9 +232,8 @@ FrfResult estimate_frf(const data::Trial& trial, const std::vector<std::string>&
   if (!out.status.ok) {
     std::string names;
     for (const auto& name : inputs) names += (names.empty() ? "" : ", ") + name;
-    out.status.message =
-        (trial.source.empty() ? std::string("trial") : trial.source) + " (inputs " + names +
-        "): " + out.status.message;
+    out.status.message = (trial.source.empty() ? std::string("trial") : trial.source) +
+                         " (inputs " + names + "): " + out.status.message;
   }
   return out;
 }
@@ -243,9 +244,9 @@ InverseFrfResult invert_frf(const std::vector<Eigen::MatrixXcd>& h, const Eigen:
   const int bins = static_cast<int>(h.size());
   out.condition_number.resize(bins);
   if (bins > 0 && h.front().rows() != h.front().cols()) {
-    out.status = Status::failure("cannot invert a " + std::to_string(h.front().rows()) + " x " +
-                                 std::to_string(h.front().cols()) +
-                                 " FRF: needs as many outputs as inputs");
+    out.status =
+        Status::failure("cannot invert a " + std::to_string(h.front().rows()) + " x " +
+                        std::to_string(h.front().cols()) + " FRF: needs as many outputs as inputs");
     return out;
   }
   out.k.resize(bins);

@@ -74,10 +74,10 @@ struct FrfResult {
   /// ok, or why the FRF is not identifiable (inputs perfectly coupled in the band with power, an
   /// input without power). The arrays are filled in either case.
   Status status;
-  double sample_rate_hz = 0.0;  ///< Hz
-  int segments = 0;             ///< Welch segments averaged
-  int segment_length = 0;       ///< samples per segment
-  int overlap_samples = 0;      ///< samples shared by consecutive segments
+  double sample_rate_hz = 0.0;   ///< Hz
+  int segments = 0;              ///< Welch segments averaged
+  int segment_length = 0;        ///< samples per segment
+  int overlap_samples = 0;       ///< samples shared by consecutive segments
   Eigen::VectorXd frequency_hz;  ///< [F], Hz
   /// [F] of (M x N): H(f)(j, i) from input i to output j (output unit per input unit), the columns
   /// of Gxx^-1 Gxy transposed (eq 2). NaN where Gxx is exactly zero.

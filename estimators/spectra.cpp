@@ -146,7 +146,8 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
       for (int a = 0; a < channels; ++a) {
         const auto xa = spectra.col(static_cast<Eigen::Index>(a) * chunk + s).array().conjugate();
         for (int b = a; b < channels; ++b) {
-          acc[a * channels + b] += xa * spectra.col(static_cast<Eigen::Index>(b) * chunk + s).array();
+          acc[a * channels + b] +=
+              xa * spectra.col(static_cast<Eigen::Index>(b) * chunk + s).array();
         }
       }
     }
@@ -180,9 +181,9 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
 CrossSpectra welch_cross_spectra(const data::Trial& trial, const std::vector<std::string>& channels,
                                  const WelchOptions& options) {
   validate(options);
-  data::require_samples(trial, options.segment_length,
-                        "one Welch segment of " + std::to_string(options.segment_length) +
-                            " samples");
+  data::require_samples(
+      trial, options.segment_length,
+      "one Welch segment of " + std::to_string(options.segment_length) + " samples");
   return welch_cross_spectra(trial.columns(channels), trial.sample_rate_hz, options,
                              trial.source.empty() ? "trial" : trial.source);
 }

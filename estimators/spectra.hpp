@@ -22,8 +22,8 @@ std::string to_string(Detrend detrend);
 
 struct WelchOptions {
   int segment_length = 256;  ///< samples per segment (scipy nperseg), >= 2
-  int fft_length = 0;        ///< samples per FFT (scipy nfft), 0 = segment_length; longer = zero pad
-  double overlap = 0.5;      ///< fraction of a segment shared with the next, in [0, 1)
+  int fft_length = 0;    ///< samples per FFT (scipy nfft), 0 = segment_length; longer = zero pad
+  double overlap = 0.5;  ///< fraction of a segment shared with the next, in [0, 1)
   Window window = Window::hann();  ///< periodic (DFT-even) samples, as scipy get_window
   Detrend detrend = Detrend::constant;
 };
@@ -49,8 +49,8 @@ double equivalent_independent_segments(int segments, const WelchOptions& options
 
 /// Cross-spectral matrices of C channels at F = fft_length / 2 + 1 one-sided frequencies.
 struct CrossSpectra {
-  double sample_rate_hz = 0.0;    ///< Hz
-  Eigen::VectorXd frequency_hz;   ///< [F] k fs / fft_length, Hz
+  double sample_rate_hz = 0.0;   ///< Hz
+  Eigen::VectorXd frequency_hz;  ///< [F] k fs / fft_length, Hz
   /// [F] of (C x C) Hermitian: g[f](a, b) = mean over segments of conj(S_a) S_b times
   /// 2 / (fs sum w^2) (1 / (fs sum w^2) at 0 Hz and, for even FFT lengths, at fs / 2), in
   /// (unit_a unit_b) / Hz, exactly scipy.signal.csd(s_a, s_b, scaling='density').
@@ -67,8 +67,8 @@ struct CrossSpectra {
 /// Welch cross-spectral matrices of the columns of `signals` (S samples x C channels) sampled at
 /// `sample_rate_hz` (Hz). Segments of all channels go through one batched real-FFT plan
 /// (RealFft, made once), 32 segments of every channel per call, and the cross products accumulate
-/// per bin as they come, so memory stays O(C^2 F + 32 C fft_length) for any record length. Throws InputError when S < segment_length (naming `source`), on bad options or a
-/// non-positive rate.
+/// per bin as they come, so memory stays O(C^2 F + 32 C fft_length) for any record length. Throws
+/// InputError when S < segment_length (naming `source`), on bad options or a non-positive rate.
 CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signals,
                                  double sample_rate_hz, const WelchOptions& options,
                                  const std::string& source = "signals");

@@ -70,8 +70,11 @@ std::set<std::string> keys(const nlohmann::json& j) {
 BOOST_AUTO_TEST_CASE(writes_the_contract_keys_to_a_file) {
   Scratch s;
   const fs::path json = s.dir / "frf.json";
-  const Run r = stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y --nfft 256 --overlap 0.5 "
-                        "-o \"" + json.string() + "\"", s);
+  const Run r = stiffid("\"" + kTrial +
+                            "\" --inputs fx,fy --outputs x,y --nfft 256 --overlap 0.5 "
+                            "-o \"" +
+                            json.string() + "\"",
+                        s);
   BOOST_REQUIRE_EQUAL(r.exit_code, 0);
   const auto j = nlohmann::json::parse(read_text(json));
   BOOST_CHECK((keys(j) == std::set<std::string>{"fs", "nfft", "segments", "inputs", "outputs",
@@ -151,8 +154,8 @@ BOOST_AUTO_TEST_CASE(stiffness_flag_writes_the_inverse_matrix) {
 BOOST_AUTO_TEST_CASE(missing_column_is_exit_2_naming_file_and_column) {
   Scratch s;
   const fs::path json = s.dir / "frf.json";
-  const Run r = stiffid("\"" + kTrial + "\" --inputs fx,fz --outputs x,y -o \"" + json.string() +
-                        "\"", s);
+  const Run r =
+      stiffid("\"" + kTrial + "\" --inputs fx,fz --outputs x,y -o \"" + json.string() + "\"", s);
   BOOST_CHECK_EQUAL(r.exit_code, 2);
   BOOST_CHECK(contains(r.err, "mimo_endpoint_c25_snr20.csv"));
   BOOST_CHECK(contains(r.err, "'fz'"));
@@ -171,9 +174,12 @@ BOOST_AUTO_TEST_CASE(too_few_samples_for_nfft_is_exit_2_naming_the_file) {
 
 BOOST_AUTO_TEST_CASE(bad_window_detrend_and_overlap_are_exit_2_naming_the_flag) {
   Scratch s;
-  for (const auto& [flag, value] : std::vector<std::pair<std::string, std::string>>{
-           {"--window", "kaiser:abc"}, {"--window", "triangle"}, {"--detrend", "quadratic"},
-           {"--overlap", "1.5"}, {"--nfft", "1"}}) {
+  for (const auto& [flag, value] :
+       std::vector<std::pair<std::string, std::string>>{{"--window", "kaiser:abc"},
+                                                        {"--window", "triangle"},
+                                                        {"--detrend", "quadratic"},
+                                                        {"--overlap", "1.5"},
+                                                        {"--nfft", "1"}}) {
     const Run r =
         stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y " + flag + " " + value, s);
     BOOST_TEST_CONTEXT(flag << " " << value) {
@@ -202,8 +208,8 @@ BOOST_AUTO_TEST_CASE(perfectly_coupled_inputs_are_exit_1_with_a_message_and_no_f
     }
   }
   const fs::path json = s.dir / "frf.json";
-  const Run r = stiffid("\"" + csv.string() + "\" --inputs fx,fy --outputs x,y -o \"" +
-                        json.string() + "\"", s);
+  const Run r = stiffid(
+      "\"" + csv.string() + "\" --inputs fx,fy --outputs x,y -o \"" + json.string() + "\"", s);
   BOOST_CHECK_EQUAL(r.exit_code, 1);
   BOOST_CHECK(contains(r.err, "perfectly coupled"));
   BOOST_CHECK(contains(r.err, "coupled.csv"));

@@ -95,7 +95,8 @@ void check_against_truth(const est::FrfResult& r, const std::vector<std::vector<
       for (size_t i = 0; i < system[j].size(); ++i) {
         const cd truth = system[j][i].response(r.frequency_hz[f] / r.sample_rate_hz);
         const cd got = r.h[f](j, i);
-        const double sd = std::sqrt(2.0) * r.random_error.frf_magnitude.eps[f](j, i) * std::abs(got);
+        const double sd =
+            std::sqrt(2.0) * r.random_error.frf_magnitude.eps[f](j, i) * std::abs(got);
         BOOST_TEST_CONTEXT("f=" << r.frequency_hz[f] << " out " << j << " in " << i) {
           BOOST_CHECK_LE(std::abs(got - truth), 4.5 * sd);
         }
@@ -250,7 +251,8 @@ BOOST_AUTO_TEST_CASE(coherences_match_their_closed_forms_for_independent_inputs)
   for (size_t f = 0; f < q.h.size(); ++f) {
     for (int j = 0; j < 2; ++j) {
       Eigen::Vector3d power;
-      for (int i = 0; i < 3; ++i) power[i] = std::norm(kSystem3x2[j][i].response(q.frequency_hz[f]));
+      for (int i = 0; i < 3; ++i)
+        power[i] = std::norm(kSystem3x2[j][i].response(q.frequency_hz[f]));
       const double total = power.sum() + noise_sd * noise_sd;
       const double multiple = power.sum() / total;
       BOOST_CHECK_SMALL(q.multiple_coherence(f, j) - multiple, tolerance(multiple, nd_conditioned));
@@ -287,7 +289,8 @@ BOOST_AUTO_TEST_CASE(single_input_gives_partial_equal_to_ordinary_and_siso_error
     const double mag = std::abs(r.h[f](0, 0));
     const double eps = r.random_error.frf_magnitude.eps[f](0, 0);
     BOOST_CHECK_CLOSE(r.random_error.frf_magnitude.upper[f](0, 0), mag * (1 + 2 * eps), 1e-9);
-    BOOST_CHECK_CLOSE(r.random_error.frf_magnitude.lower[f](0, 0), std::max(0.0, mag * (1 - 2 * eps)), 1e-9);
+    BOOST_CHECK_CLOSE(r.random_error.frf_magnitude.lower[f](0, 0),
+                      std::max(0.0, mag * (1 - 2 * eps)), 1e-9);
   }
 }
 

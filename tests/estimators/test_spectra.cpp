@@ -45,7 +45,8 @@ BOOST_AUTO_TEST_CASE(cross_spectra_match_scipy_csd_for_every_window_detrend_and_
       BOOST_CHECK_EQUAL(s.segments, c["segments"].get<int>());
       const auto f = c["frequency_hz"].get<std::vector<double>>();
       BOOST_REQUIRE_EQUAL(s.bins(), static_cast<int>(f.size()));
-      for (int k = 0; k < s.bins(); ++k) BOOST_CHECK_SMALL(s.frequency_hz[k] - f[k], 1e-12 * f.back());
+      for (int k = 0; k < s.bins(); ++k)
+        BOOST_CHECK_SMALL(s.frequency_hz[k] - f[k], 1e-12 * f.back());
       double peak = 0.0;  // largest auto-spectrum value, the scale of every entry of G
       for (int k = 0; k < s.bins(); ++k) peak = std::max(peak, s.g[k].diagonal().real().maxCoeff());
       for (int a = 0; a < 3; ++a) {
@@ -62,7 +63,8 @@ BOOST_AUTO_TEST_CASE(cross_spectra_match_scipy_csd_for_every_window_detrend_and_
         }
       }
       const auto pxx = c["welch_psd_0"].get<std::vector<double>>();
-      for (int k = 0; k < s.bins(); ++k) BOOST_CHECK_SMALL(s.g[k](0, 0).real() - pxx[k], 1e-12 * peak);
+      for (int k = 0; k < s.bins(); ++k)
+        BOOST_CHECK_SMALL(s.g[k](0, 0).real() - pxx[k], 1e-12 * peak);
     }
   }
 }

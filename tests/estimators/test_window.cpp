@@ -25,8 +25,8 @@ BOOST_AUTO_TEST_CASE(samples_match_scipy_get_window_periodic_and_symmetric) {
   for (const auto& c : cases) {
     const Window w = Window::parse(c["window"].get<std::string>());
     const int n = c["n"].get<int>();
-    const auto symmetry = c["periodic"].get<bool>() ? WindowSymmetry::periodic
-                                                    : WindowSymmetry::symmetric;
+    const auto symmetry =
+        c["periodic"].get<bool>() ? WindowSymmetry::periodic : WindowSymmetry::symmetric;
     const Eigen::VectorXd got = w.samples(n, symmetry);
     const auto expected = c["w"].get<std::vector<double>>();
     BOOST_REQUIRE_EQUAL(got.size(), static_cast<Eigen::Index>(expected.size()));
@@ -50,7 +50,8 @@ BOOST_AUTO_TEST_CASE(periodic_window_is_the_symmetric_one_of_length_n_plus_one_t
   }
   // Hann closed form: 0.5 - 0.5 cos(2 pi k / n) for the periodic window of n samples.
   const Eigen::VectorXd h = Window::hann().periodic(10);
-  for (int k = 0; k < 10; ++k) BOOST_CHECK_SMALL(h[k] - (0.5 - 0.5 * std::cos(2 * M_PI * k / 10)), 1e-15);
+  for (int k = 0; k < 10; ++k)
+    BOOST_CHECK_SMALL(h[k] - (0.5 - 0.5 * std::cos(2 * M_PI * k / 10)), 1e-15);
 }
 
 BOOST_AUTO_TEST_CASE(text_forms_parse_and_round_trip) {
