@@ -1,0 +1,133 @@
+// The time-frequency identification on simulated Piovesan 2012 posture trials (nonlinear two-link
+// arm, Kelvin-Voigt joints, 5 N / 20 ms pulse at 2.5 s; simulated with scipy by
+// tests/data/tfa/make_posture_trials.py, truth K(t) = K0 u(t) of eqs 52-54), noise-free and with
+// 20 dB of white noise on the joint angles; and the bad-input errors of the pipeline.
+#include <boost/test/unit_test.hpp>
+#include <cmath>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "data/csv.hpp"
+#include "data/error.hpp"
+#include "estimators/tfa.hpp"
+
+namespace est = stiffid::estimators;
+
+namespace {
+
+const Eigen::Matrix2d kK0 = (Eigen::Matrix2d() << 35, 5, 5, 20).finished();
+
+double profile(const std::string& kind, double t) {
+  if (t < 2.5 || kind == "constant") return 1.0;
+  const double rate = kind == "sigmoid" ? 4.0 : 30.0;
+  return 4.0 / (1.0 + std::exp(-rate * (t - 3.75))) + 1.0;
+}
+
+stiffid::data::Trial posture_trial(const std::string& kind, double snr_db, unsigned seed) {
+  stiffid::data::Trial trial =
+      stiffid::data::read_trial_csv(std::string(STIFFID_TEST_DATA_DIR) + "/tfa/posture_" + kind +
+                                    ".csv");
+  if (std::isfinite(snr_db)) {
+    // White Gaussian noise on each angle, RMS = RMS of its deviation after the onset / 10^(snr/20).
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    const int onset = static_cast<int>(std::lround((2.5 - trial.start_time_s) * trial.sample_rate_hz));
+    for (int c = 0; c < 2; ++c) {
+      const int col = trial.index(c == 0 ? "th1" : "th2");
+      const Eigen::VectorXd after = trial.samples.col(col).tail(trial.sample_count() - onset);
+      const double rms = std::sqrt((after.array() - trial.samples(0, col)).square().mean());
+      const double sigma = rms / std::pow(10.0, snr_db / 20.0);
+      for (int i = 0; i < trial.sample_count(); ++i) trial.samples(i, col) += sigma * normal(rng);
+    }
+  }
+  return trial;
+}
+
+/// Percentage RMS error of coefficient (r, c) of K over [t0, t1]: 100 RMS(K^ - K) / RMS(K).
+double percent_rms_error(const est::TfaResult& r, const std::string& kind, int row, int col,
+                         double t0, double t1, bool damping = false) {
+  double se = 0, st = 0;
+  for (int m = 0; m < r.modal.time_s.size(); ++m) {
+    const double t = r.modal.time_s(m);
+    if (t < t0 || t > t1) continue;
+    const double truth = (damping ? 0.01 : profile(kind, t)) * kK0(row, col);
+    const double est = (damping ? r.modal.damping_nms_per_rad[m] : r.modal.stiffness_nm_per_rad[m])(row, col);
+    se += (est - truth) * (est - truth);
+    st += truth * truth;
+  }
+  return 100.0 * std::sqrt(se / st);
+}
+
+est::TfaOptions piovesan_options() {
+  est::TfaOptions o;  // Kaiser beta 3, 0.75 s, 2.5 ms hop; SG order 3 over 0.25 s (the paper's)
+  o.deviation.angle_channels = {"th1", "th2"};
+  o.deviation.force_channels = {"fx", "fy"};  // onset auto
+  return o;
+}
+
+}  // namespace
+
+std::string report(const est::TfaResult& r, const std::string& kind) {
+  std::ostringstream line;
+  for (const auto& [t0, t1] : {std::pair{2.5, 5.0}, {2.6, 3.175}, {2.6, 4.5}}) {
+    line << " [" << t0 << "-" << t1 << " s] k11 " << percent_rms_error(r, kind, 0, 0, t0, t1)
+         << " k12 " << percent_rms_error(r, kind, 0, 1, t0, t1) << " k22 "
+         << percent_rms_error(r, kind, 1, 1, t0, t1) << " c11 "
+         << percent_rms_error(r, kind, 0, 0, t0, t1, true) << " c12 "
+         << percent_rms_error(r, kind, 0, 1, t0, t1, true) << " c22 "
+         << percent_rms_error(r, kind, 1, 1, t0, t1, true) << " %;";
+  }
+  return line.str();
+}
+
+BOOST_AUTO_TEST_CASE(constant_stiffness_noise_free_is_recovered_to_one_percent) {
+  const est::TfaResult r = est::identify_tfa(posture_trial("constant", HUGE_VAL, 7), piovesan_options());
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  BOOST_CHECK_CLOSE(r.deviation.onset_s, 2.5, 1e-6);  // auto onset from fx, fy
+  BOOST_TEST_MESSAGE("constant, noise-free:" << report(r, "constant"));
+  // The nonlinear arm's free response is two damped modes up to the Coriolis terms, quadratic in
+  // the ~0.01 rad deviations: the stiffness is recovered to well under 1 % (measured 0.03 % for
+  // k11, 0.6 % for k12), far inside issue 6's 10 % for k11.
+  for (const auto& [row, col] : {std::pair{0, 0}, {0, 1}, {1, 1}}) {
+    BOOST_CHECK_LT(percent_rms_error(r, "constant", row, col, 2.6, 4.5), 1.0);
+  }
+  BOOST_CHECK_LT(percent_rms_error(r, "constant", 0, 0, 2.5, 5.0), 1.0);
+}
+
+BOOST_AUTO_TEST_CASE(time_varying_and_noisy_cases_are_reported) {
+  // Issue 6 asks k11 within 10 % for sigmoid K and at 20 dB; this implementation does not reach
+  // it yet (see docs/tfa.md, "Limits"): the errors are printed (--log_level=message) for the
+  // report, and only their being finite where the pipeline succeeds is checked.
+  for (const std::string kind : {"constant", "sigmoid", "sharp"}) {
+    for (const double snr : {HUGE_VAL, 20.0}) {
+      if (kind == "constant" && snr == HUGE_VAL) continue;
+      const est::TfaResult r = est::identify_tfa(posture_trial(kind, snr, 7), piovesan_options());
+      BOOST_TEST_MESSAGE(kind << ", SNR " << snr << " dB: " << (r.status.ok ? "" : r.status.message)
+                              << report(r, kind));
+      if (r.status.ok) BOOST_CHECK(std::isfinite(percent_rms_error(r, kind, 0, 0, 2.6, 4.5)));
+    }
+  }
+}
+
+BOOST_AUTO_TEST_CASE(missing_channels_short_trials_and_bad_onsets_are_input_errors) {
+  const stiffid::data::Trial trial = posture_trial("constant", HUGE_VAL, 1);
+  est::TfaOptions o = piovesan_options();
+  o.deviation.angle_channels = {"th1", "elbow"};
+  BOOST_CHECK_THROW(est::identify_tfa(trial, o), stiffid::InputError);
+  o = piovesan_options();
+  o.deviation.onset_s = 7.0;  // after the end of the trial
+  BOOST_CHECK_THROW(est::identify_tfa(trial, o), stiffid::InputError);
+  o.deviation.onset_s = 1.0;  // before its start (2.0 s)
+  BOOST_CHECK_THROW(est::identify_tfa(trial, o), stiffid::InputError);
+  o.deviation.onset_s = 4.6;  // 0.4 s of free response: shorter than one 0.75 s window
+  try {
+    est::identify_tfa(trial, o);
+    BOOST_ERROR("expected an InputError");
+  } catch (const stiffid::InputError& e) {
+    BOOST_CHECK(std::string(e.what()).find("too short after the onset") != std::string::npos);
+  }
+  o = piovesan_options();
+  o.deviation.force_channels = {};  // auto onset without forces
+  BOOST_CHECK_THROW(est::identify_tfa(trial, o), stiffid::InputError);
+}
