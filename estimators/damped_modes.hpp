@@ -17,6 +17,7 @@
 
 #include "data/error.hpp"
 #include "estimators/matrix_pencil.hpp"
+#include "estimators/ridge.hpp"
 
 namespace stiffid::estimators {
 
@@ -84,5 +85,12 @@ struct DampedModesResult {
 DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& deviation,
                                    double sample_rate_hz, double start_time_s, double onset_s,
                                    const DampedModesOptions& options);
+
+/// The tracks in the form of the spectrogram method's ridges (ridge.hpp), so that stages 4-6 of the
+/// tfa pipeline (modal_analysis.hpp, normalized_force.hpp) take either method: per mode j,
+/// frequency_hz, omega_rad_per_s and decay_rate_per_s (= alpha_j, < 0 decays) as columns j,
+/// amplitude[j] = A_jk(t), phase_rad[j], amplitude_c[j] = A_jk e^{i phase_jk}; bin = -1 (no
+/// spectrogram); the status is the fit's.
+RidgeResult as_ridges(const DampedModesResult& result);
 
 }  // namespace stiffid::estimators
