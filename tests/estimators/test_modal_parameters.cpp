@@ -6,6 +6,7 @@
 
 #include "data/error.hpp"
 #include "estimators/damped_modes.hpp"
+#include "estimators/modal_analysis.hpp"
 #include "estimators/modal_parameters.hpp"
 #include "models/arm.hpp"
 
@@ -128,4 +129,29 @@ BOOST_AUTO_TEST_CASE(rejects_mismatched_inertia) {
   const auto modes = fit_damped_modes(q, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
   BOOST_CHECK_THROW(modal_parameters(modes, {cs.m, cs.m}, {}), InputError);
   BOOST_CHECK_THROW(modal_parameters(modes, {Eigen::Matrix3d::Identity()}, {}), InputError);
+}
+
+BOOST_AUTO_TEST_CASE(tracks_feed_the_spectrogram_pipelines_modal_analysis) {
+  // The whole chain of the tfa pipeline with the modal method: fit -> as_ridges -> stage 4-5
+  // modal_analysis (Savitzky-Golay smoothing, eqs 45-48 with a real P). Noise-free exact 2-DOF
+  // system with classical damping: K, C to 1 % (issue 7) over 2.6-4.5 s.
+  const Case cs = paper_case(0.0);
+  const Eigen::MatrixXd q = free_response(cs.m, cs.k, cs.c, {0.3, -0.5});
+  const auto modes = fit_damped_modes(q, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+  BOOST_REQUIRE(modes.status.ok);
+  const auto ridges = stiffid::estimators::as_ridges(modes);
+  const std::vector<Eigen::MatrixXd> inertia(ridges.time_s.size(), cs.m);
+  const auto r = stiffid::estimators::modal_analysis(ridges, inertia, {});
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  double ek = 0.0, ec = 0.0;
+  for (Eigen::Index i = 0; i < r.time_s.size(); ++i) {
+    if (r.time_s(i) < 2.6 || r.time_s(i) > 4.5) continue;
+    ek = std::max(ek, (r.stiffness_nm_per_rad[i] - cs.k).cwiseAbs().maxCoeff() /
+                          cs.k.cwiseAbs().maxCoeff());
+    ec = std::max(ec, (r.damping_nms_per_rad[i] - cs.c).cwiseAbs().maxCoeff() /
+                          cs.c.cwiseAbs().maxCoeff());
+  }
+  BOOST_TEST_MESSAGE("chain through modal_analysis: K " << ek << ", C " << ec);
+  BOOST_CHECK_SMALL(ek, 0.01);
+  BOOST_CHECK_SMALL(ec, 0.01);
 }
