@@ -109,11 +109,9 @@ FrfResult estimate_frf(const CrossSpectra& spectra, int inputs, const FrfOptions
                          .all();
   }
 
-  WelchOptions welch = options.welch;
-  welch.segment_length = spectra.segment_length;
-  welch.overlap = static_cast<double>(spectra.overlap_samples) / spectra.segment_length;
   FrfRandomError& err = out.random_error;
-  err.equivalent_independent_segments = equivalent_independent_segments(spectra.segments, welch);
+  err.equivalent_independent_segments = equivalent_independent_segments(
+      spectra.segments, spectra.segment_length, spectra.overlap_samples, options.welch.window);
   err.averages = options.correct_for_overlap ? err.equivalent_independent_segments
                                              : static_cast<double>(spectra.segments);
   err.confidence_factor = options.confidence_factor;

@@ -106,7 +106,9 @@ struct FrfResult {
 /// H1 estimate and coherences from cross-spectral matrices whose first `inputs` channels are the
 /// inputs and the rest the outputs (Perreault et al. 1999 eqs 1-7). Per frequency, Gxx H_j = Gxy_j
 /// is solved with a pivoted LDL^T factorization of the Hermitian Gxx, and its condition comes from
-/// its eigenvalues. Never throws on numerical trouble: see FrfResult::status.
+/// its eigenvalues. Never throws on numerical trouble: see FrfResult::status. Only
+/// options.welch.window is read from options.welch (for Welch's overlap-corrected count): it must
+/// be the window the spectra were made with.
 FrfResult estimate_frf(const CrossSpectra& spectra, int inputs, const FrfOptions& options = {});
 
 /// Welch spectra of inputs (S x N) and outputs (S x M) sampled at `sample_rate_hz` (Hz), then the

@@ -81,13 +81,19 @@ void validate(const WelchOptions& options) {
 }
 
 double equivalent_independent_segments(int segments, const WelchOptions& options) {
+  return equivalent_independent_segments(segments, options.segment_length, overlap_samples(options),
+                                         options.window);
+}
+
+double equivalent_independent_segments(int segments, int segment_length, int overlap_samples,
+                                       const Window& window) {
   if (segments <= 1) return segments;
-  const Eigen::VectorXd w = options.window.periodic(options.segment_length);
-  const int step = options.segment_length - overlap_samples(options);
+  const Eigen::VectorXd w = window.periodic(segment_length);
+  const int step = segment_length - overlap_samples;
   const double energy = w.squaredNorm();
   double sum = 0.0;
-  for (int m = 1; m < segments && m * step < options.segment_length; ++m) {
-    const int shared = options.segment_length - m * step;
+  for (int m = 1; m < segments && m * step < segment_length; ++m) {
+    const int shared = segment_length - m * step;
     const double rho = w.head(shared).dot(w.tail(shared)) / energy;
     sum += (1.0 - static_cast<double>(m) / segments) * rho * rho;
   }

@@ -46,6 +46,10 @@ void validate(const WelchOptions& options);
 /// rho(m)^2), rho(m) = sum_n w[n] w[n + m step] / sum_n w[n]^2, for K segments of white noise.
 /// Equals K without overlap; about 0.95 K for Hann with 50 % overlap.
 double equivalent_independent_segments(int segments, const WelchOptions& options);
+/// The same for segments of `segment_length` samples sharing `overlap_samples` samples, tapered by
+/// the periodic `window`.
+double equivalent_independent_segments(int segments, int segment_length, int overlap_samples,
+                                       const Window& window);
 
 /// Cross-spectral matrices of C channels at F = fft_length / 2 + 1 one-sided frequencies.
 struct CrossSpectra {
