@@ -19,8 +19,7 @@ int next_power_of_two(int n) {
 }  // namespace
 
 SampledWindow::Cut ReassignedSpectrogram::frame_window(int m) const {
-  const SampledWindow sampled(window, half_length, 1.0 / sample_rate_hz);
-  return sampled.cut(offset_lo(m), offset_hi(m));
+  return sampled->cut(offset_lo(m), offset_hi(m));
 }
 
 ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
@@ -98,9 +97,9 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
   const int parts = analytic ? 2 : 1;
   const int batch = 3 * parts * channels * frames;
   Eigen::MatrixXd frames_in = Eigen::MatrixXd::Zero(n_fft, batch);
-  const SampledWindow sampled(options.window, half, dt);
+  r.sampled = std::make_shared<const SampledWindow>(options.window, half, dt);
   for (int m = 0; m < frames; ++m) {
-    const SampledWindow::Cut cut = sampled.cut(r.offset_lo(m), r.offset_hi(m));
+    const SampledWindow::Cut cut = r.sampled->cut(r.offset_lo(m), r.offset_hi(m));
     const Eigen::VectorXd* windows[3] = {&cut.h, &cut.th, &cut.dh};
     for (int w = 0; w < 3; ++w) {
       for (int p = 0; p < parts; ++p) {

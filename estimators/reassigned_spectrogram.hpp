@@ -5,6 +5,7 @@
 // time and frequency of every bin (Auger & Flandrin 1995) and its local decay rate.
 
 #include <Eigen/Core>
+#include <memory>
 #include <vector>
 
 #include "estimators/tfa_window.hpp"
@@ -50,6 +51,7 @@ struct ReassignedSpectrogram {
   int first_bin = 0;            ///< FFT bin of frequency_hz(0)
   TfWindow window = TfWindow::kaiser(3.0);
   int half_length = 0;          ///< L: the window has 2L + 1 samples, T = 2 L dt
+  std::shared_ptr<const SampledWindow> sampled;  ///< the sampled h and h' (shared, immutable)
   bool analytic = false;        ///< the channels were analytic signals (no negative frequencies)
 
   Eigen::VectorXd time_s;        ///< [T] frame centres, s

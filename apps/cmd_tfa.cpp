@@ -1,0 +1,294 @@
+// `stiffid tfa`: time-varying joint stiffness K(t) and damping C(t) of a two-link arm from one
+// trial with one force impulse, by the reassigned spectrogram and modal analysis of Piovesan et
+// al. 2012 (estimators/tfa.hpp; method, derivations and limits in docs/tfa.md).
+//
+//   stiffid tfa TRIAL.csv --angles th1,th2 --onset 2.5|auto [--forces fx,fy]
+//               [--method spectrogram] [--baseline BASE.csv] [--subject SPEC.json]
+//               [--window kaiser:3|hann|gaussian:S] [--window-s 0.75] [--hop-s 0.0025]
+//               [--fft-size N] [--fmin 0.5] [--fmax 20] [--jump-penalty 2] [--max-jump-hz 0.5]
+//               [--sg-window-s 0.25] [--sg-order 3] [--pulse-s 0.02] [--analytic]
+//               [--decimation D] [-o OUT.json] [--spectrogram OUT.csv]
+//
+// Output JSON (stdout without -o; every series runs over "t_s", frame centres in s; non-finite
+// values are null): "method", "options" (all settings used), "onset_s", "free_start_s",
+// "analysed_s" [first, last], "analysis_rate_hz", "decimation", "t_s" [T],
+//   "f_hz"[j] (smoothed), "f_ridge_hz"[j] (per frame), "omega_rad_per_s"[j],
+//   "amplitude"[j][k] (rad, mode j in joint k), "phase_rad"[j][k],
+//   "alpha_per_s"[j] (eq 47), "alpha_ridge_per_s"[j] (reassignment), "gamma_per_s"[j] (eq 45),
+//   "eta_squared_per_s2"[j] (eq 46), "phase_difference_rad"[j], "time_lag_s"[j] (eq 42),
+//   "eigenvectors"[r][c] (P(t), columns = modes), "mode_shapes"[r][c] (joint space),
+//   "K_nm_per_rad"[r][c], "C_nms_per_rad"[r][c] (eq 48),
+//   "normalized_force": {"q"[j], "q_dot"[j], "sigma"[j], "envelope"[j], "envelope_force"[j]}.
+// --spectrogram writes CSV rows t_s,f_hz,channel,power,t_reassigned_s,f_reassigned_hz for the bins
+// within 60 dB of the map's peak (scripts/plot_spectrogram.py draws it with the ridges).
+// Exit 2 on bad input, 1 when frames cannot be resolved; no file is written then.
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "apps/commands.hpp"
+#include "data/csv.hpp"
+#include "data/error.hpp"
+#include "data/output.hpp"
+#include "estimators/tfa.hpp"
+
+namespace stiffid::apps {
+namespace {
+
+struct TfaCommandOptions {
+  std::string trial_path, angles, forces, onset, method = "spectrogram", baseline_path,
+      subject_path, window = "kaiser:3", output_path, spectrogram_path;
+  estimators::TfaOptions tfa;
+};
+
+double parse_number(const std::string& text, const std::string& flag) {
+  size_t used = 0;
+  double v = 0.0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (text.empty() || used != text.size() || !std::isfinite(v)) {
+    throw InputError(flag + ": expected a number, got '" + text + "'");
+  }
+  return v;
+}
+
+models::ArmParameters read_subject(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError("--subject " + path + ": cannot read the file");
+  nlohmann::json spec;
+  try {
+    in >> spec;
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError("--subject " + path + ": not valid JSON (" + e.what() + ")");
+  }
+  if (!spec.is_object()) throw InputError("--subject " + path + ": expected a JSON object");
+  models::ArmParameters arm;
+  const std::pair<const char*, double*> fields[] = {
+      {"l1_m", &arm.l1_m}, {"r1_m", &arm.r1_m}, {"m1_kg", &arm.m1_kg},
+      {"iz1_kg_m2", &arm.iz1_kg_m2}, {"l2_m", &arm.l2_m}, {"r2_m", &arm.r2_m},
+      {"m2_kg", &arm.m2_kg}, {"iz2_kg_m2", &arm.iz2_kg_m2}};
+  for (const auto& [key, value] : spec.items()) {
+    double* target = nullptr;
+    for (const auto& [name, field] : fields) {
+      if (key == name) target = field;
+    }
+    if (target == nullptr) {
+      throw InputError("--subject " + path + ": unknown key \"" + key +
+                       "\"; expected l1_m, r1_m, m1_kg, iz1_kg_m2, l2_m, r2_m, m2_kg, iz2_kg_m2");
+    }
+    if (!value.is_number()) {
+      throw InputError("--subject " + path + ": key \"" + key + "\" must be a number");
+    }
+    *target = value.get<double>();
+  }
+  try {
+    arm.validate();
+  } catch (const InputError& e) {
+    throw InputError("--subject " + path + ": " + e.what());
+  }
+  return arm;
+}
+
+nlohmann::json series(const Eigen::Ref<const Eigen::VectorXd>& v) {
+  nlohmann::json out = nlohmann::json::array();
+  for (Eigen::Index i = 0; i < v.size(); ++i) {
+    out.push_back(std::isfinite(v(i)) ? nlohmann::json(v(i)) : nlohmann::json(nullptr));
+  }
+  return out;
+}
+
+nlohmann::json columns(const Eigen::MatrixXd& m) {  // (T x n) -> [n][T]
+  nlohmann::json out = nlohmann::json::array();
+  for (Eigen::Index j = 0; j < m.cols(); ++j) out.push_back(series(m.col(j)));
+  return out;
+}
+
+nlohmann::json matrices(const std::vector<Eigen::MatrixXd>& list) {  // [T](r x c) -> [r][c][T]
+  const Eigen::Index rows = list.empty() ? 0 : list[0].rows();
+  const Eigen::Index cols = list.empty() ? 0 : list[0].cols();
+  nlohmann::json out = nlohmann::json::array();
+  for (Eigen::Index r = 0; r < rows; ++r) {
+    nlohmann::json row = nlohmann::json::array();
+    for (Eigen::Index c = 0; c < cols; ++c) {
+      Eigen::VectorXd v(list.size());
+      for (size_t m = 0; m < list.size(); ++m) v(m) = list[m](r, c);
+      row.push_back(series(v));
+    }
+    out.push_back(row);
+  }
+  return out;
+}
+
+std::string spectrogram_csv(const estimators::ReassignedSpectrogram& sg,
+                            const std::vector<std::string>& names) {
+  double peak = 0.0;
+  for (int c = 0; c < sg.channels(); ++c) peak = std::max(peak, sg.stft[c].cwiseAbs2().maxCoeff());
+  std::ostringstream out;
+  out.precision(10);
+  out << "t_s,f_hz,channel,power,t_reassigned_s,f_reassigned_hz\n";
+  for (int c = 0; c < sg.channels(); ++c) {
+    for (int m = 0; m < sg.frames(); ++m) {
+      for (int k = 0; k < sg.bins(); ++k) {
+        const double p = std::norm(sg.stft[c](k, m));
+        if (p < 1e-6 * peak) continue;
+        out << sg.time_s(m) << ',' << sg.frequency_hz(k) << ',' << names[c] << ',' << p << ','
+            << sg.reassigned_time_s[c](k, m) << ',' << sg.reassigned_frequency_hz[c](k, m)
+            << '\n';
+      }
+    }
+  }
+  return out.str();
+}
+
+void run(TfaCommandOptions cli) {
+  estimators::TfaOptions& o = cli.tfa;
+  o.method = estimators::parse_tfa_method(cli.method);
+  o.deviation.angle_channels = data::split_list(cli.angles, "--angles");
+  if (!cli.forces.empty()) o.deviation.force_channels = data::split_list(cli.forces, "--forces");
+  if (cli.onset == "auto") {
+    o.deviation.onset_s = std::numeric_limits<double>::quiet_NaN();
+  } else {
+    o.deviation.onset_s = parse_number(cli.onset, "--onset");
+  }
+  o.spectrogram.window = estimators::TfWindow::parse(cli.window, "--window");
+  if (!cli.subject_path.empty()) o.arm = read_subject(cli.subject_path);
+
+  const data::Trial trial = data::read_trial_csv(cli.trial_path);
+  std::unique_ptr<data::Trial> baseline;
+  if (!cli.baseline_path.empty()) {
+    baseline = std::make_unique<data::Trial>(data::read_trial_csv(cli.baseline_path));
+  }
+  const estimators::TfaResult r = estimators::identify_tfa(trial, o, baseline.get());
+  if (!r.status.ok) throw NumericalFailure(trial.source + ": " + r.status.message);
+
+  nlohmann::json out;
+  out["method"] = estimators::to_string(o.method);
+  out["options"] = {
+      {"angles", o.deviation.angle_channels},
+      {"forces", o.deviation.force_channels},
+      {"onset", cli.onset},
+      {"baseline", cli.baseline_path},
+      {"subject", cli.subject_path},
+      {"arm",
+       {{"l1_m", o.arm.l1_m}, {"r1_m", o.arm.r1_m}, {"m1_kg", o.arm.m1_kg},
+        {"iz1_kg_m2", o.arm.iz1_kg_m2}, {"l2_m", o.arm.l2_m}, {"r2_m", o.arm.r2_m},
+        {"m2_kg", o.arm.m2_kg}, {"iz2_kg_m2", o.arm.iz2_kg_m2}}},
+      {"window", o.spectrogram.window.name()},
+      {"window_s", 2.0 * r.spectrogram.half_length / r.analysis_rate_hz},
+      {"hop_s", r.spectrogram.hop_s},
+      {"fft_size", r.spectrogram.fft_size},
+      {"fmin_hz", o.ridges.min_frequency_hz},
+      {"fmax_hz", o.ridges.max_frequency_hz},
+      {"jump_penalty_per_hz", o.ridges.jump_penalty_per_hz},
+      {"max_jump_hz", o.ridges.max_jump_hz},
+      {"sg_window_s", o.modal.smoothing.window_s},
+      {"sg_order", o.modal.smoothing.polynomial_order},
+      {"pulse_s", o.deviation.pulse_s},
+      {"analytic", o.deviation.analytic},
+      {"decimation", r.decimation}};
+  out["onset_s"] = r.deviation.onset_s;
+  out["free_start_s"] = r.deviation.free_start_s;
+  out["analysed_s"] = {r.region_begin_s, r.region_end_s};
+  out["analysis_rate_hz"] = r.analysis_rate_hz;
+  out["decimation"] = r.decimation;
+  out["t_s"] = series(r.modal.time_s);
+  out["f_hz"] = columns(r.modal.omega_rad_per_s / (2.0 * M_PI));
+  out["f_ridge_hz"] = columns(r.ridges.frequency_hz);
+  out["omega_rad_per_s"] = columns(r.modal.omega_rad_per_s);
+  nlohmann::json amplitude = nlohmann::json::array(), phase = nlohmann::json::array();
+  for (size_t j = 0; j < r.ridges.amplitude.size(); ++j) {
+    amplitude.push_back(columns(r.ridges.amplitude[j]));
+    phase.push_back(columns(r.ridges.phase_rad[j]));
+  }
+  out["amplitude"] = amplitude;
+  out["phase_rad"] = phase;
+  out["alpha_per_s"] = columns(r.modal.alpha_per_s);
+  out["alpha_ridge_per_s"] = columns(r.ridges.decay_rate_per_s);
+  out["gamma_per_s"] = columns(r.modal.gamma_per_s);
+  out["eta_squared_per_s2"] = columns(r.modal.eta_squared_per_s2);
+  out["phase_difference_rad"] = columns(r.modal.phase_difference_rad);
+  out["time_lag_s"] = columns(r.modal.time_lag_s);
+  out["eigenvectors"] = matrices(r.modal.eigenvectors);
+  out["mode_shapes"] = matrices(r.modal.mode_shape);
+  out["K_nm_per_rad"] = matrices(r.modal.stiffness_nm_per_rad);
+  out["C_nms_per_rad"] = matrices(r.modal.damping_nms_per_rad);
+  out["normalized_force"] = {{"q", columns(r.force.coordinate)},
+                             {"q_dot", columns(r.force.velocity)},
+                             {"sigma", columns(r.force.force)},
+                             {"envelope", columns(r.force.envelope)},
+                             {"envelope_force", columns(r.force.envelope_force)}};
+  if (!cli.spectrogram_path.empty()) {
+    data::write_file_atomically(cli.spectrogram_path,
+                                spectrogram_csv(r.spectrogram, o.deviation.angle_channels));
+  }
+  data::write_json(cli.output_path, out);
+}
+
+}  // namespace
+
+void add_tfa_command(CLI::App& app) {
+  auto cli = std::make_shared<TfaCommandOptions>();
+  estimators::TfaOptions& o = cli->tfa;
+  CLI::App* sub = app.add_subcommand(
+      "tfa",
+      "time-varying joint stiffness K(t) and damping C(t) from one impulse-perturbed trial: "
+      "reassigned spectrogram, ridges and modal analysis (Piovesan et al. 2012 eqs 23-49)");
+  sub->add_option("trial", cli->trial_path, "trial CSV with a t column (s)")->required();
+  sub->add_option("--angles", cli->angles, "shoulder,elbow angle channels (rad)")->required();
+  sub->add_option("--onset", cli->onset, "pulse onset in s, or auto (from --forces)")->required();
+  sub->add_option("--forces", cli->forces, "force channels (N), for --onset auto");
+  sub->add_option("--method", cli->method, "identification method: spectrogram")
+      ->capture_default_str();
+  sub->add_option("--baseline", cli->baseline_path,
+                  "unperturbed trial (same angle channels and rate); default: the posture is "
+                  "the mean over 0.2 s before the onset");
+  sub->add_option("--subject", cli->subject_path,
+                  "JSON object of arm parameters (l1_m, r1_m, m1_kg, iz1_kg_m2, l2_m, r2_m, "
+                  "m2_kg, iz2_kg_m2); default Piovesan 2012 Table 1");
+  sub->add_option("--window", cli->window, "kaiser:BETA, hann or gaussian:SIGMA_FRACTION")
+      ->capture_default_str();
+  sub->add_option("--window-s", o.spectrogram.window_s, "STFT window length, s")
+      ->capture_default_str();
+  sub->add_option("--hop-s", o.spectrogram.hop_s, "STFT hop, s")->capture_default_str();
+  sub->add_option("--fft-size", o.spectrogram.fft_size,
+                  "FFT length (0: next power of two >= the window)")
+      ->capture_default_str();
+  sub->add_option("--fmin", o.ridges.min_frequency_hz, "lowest ridge frequency, Hz")
+      ->capture_default_str();
+  sub->add_option("--fmax", o.ridges.max_frequency_hz, "highest ridge frequency, Hz")
+      ->capture_default_str();
+  sub->add_option("--jump-penalty", o.ridges.jump_penalty_per_hz,
+                  "ridge cost per Hz of frequency change per frame")
+      ->capture_default_str();
+  sub->add_option("--max-jump-hz", o.ridges.max_jump_hz, "largest ridge jump per frame, Hz")
+      ->capture_default_str();
+  sub->add_option("--sg-window-s", o.modal.smoothing.window_s, "Savitzky-Golay window, s")
+      ->capture_default_str();
+  sub->add_option("--sg-order", o.modal.smoothing.polynomial_order,
+                  "Savitzky-Golay polynomial order")
+      ->capture_default_str();
+  sub->add_option("--pulse-s", o.deviation.pulse_s,
+                  "pulse duration after a given onset, s (auto onset: measured)")
+      ->capture_default_str();
+  sub->add_flag("--analytic", o.deviation.analytic,
+                "analyse the analytic signals (FFT Hilbert transform) of the deviations");
+  sub->add_option("--decimation", o.decimation,
+                  "keep every D-th sample before the STFT (0: auto)")
+      ->capture_default_str();
+  sub->add_option("-o,--output", cli->output_path, "output JSON file (default: stdout)");
+  sub->add_option("--spectrogram", cli->spectrogram_path,
+                  "write the (reassigned) time-frequency map as CSV");
+  sub->callback([cli]() { run(*cli); });
+}
+
+}  // namespace stiffid::apps
