@@ -319,7 +319,7 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
     }
   };
   Eigen::VectorXd residual, trial_residual;
-  Eigen::MatrixXd jac;
+  Eigen::MatrixXd jac, trial_jac;
   evaluate(fit, residual, &jac);
   double cost = residual.squaredNorm();
   for (int it = 0; it < 10; ++it) {
@@ -329,6 +329,7 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
     double scale = 1.0;
     bool improved = false;
     FrameFit trial = fit;
+    double trial_cost = cost;
     for (int half = 0; half < 6 && !improved; ++half, scale *= 0.5) {
       for (int j = 0; j < n; ++j) {
         trial.lambda[j] = fit.lambda[j] + scale * cd(step(2 * j), step(2 * j + 1));
@@ -337,14 +338,16 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
           trial.coef(j, c) = fit.coef(j, c) + scale * cd(step(col), step(col + 1));
         }
       }
-      evaluate(trial, trial_residual, nullptr);
-      improved = trial_residual.squaredNorm() <= cost;
+      evaluate(trial, trial_residual, &trial_jac);  // the Jacobian is reused when accepted
+      trial_cost = trial_residual.squaredNorm();
+      improved = trial_cost <= cost;
     }
     if (!improved) break;  // at the minimum to round-off
     fit = trial;
+    std::swap(residual, trial_residual);
+    std::swap(jac, trial_jac);
     const double previous = cost;
-    evaluate(fit, residual, &jac);
-    cost = residual.squaredNorm();
+    cost = trial_cost;
     if (previous - cost <= 1e-14 * previous) break;
   }
   return std::isfinite(cost);
