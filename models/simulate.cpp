@@ -136,6 +136,12 @@ struct Forcing {
 
 std::vector<double> segment_bounds(double t_end, std::vector<double> inner, bool every_sample,
                                    int samples, double rate) {
+  // A breakpoint that is a sample time up to round-off (0.1 + 0.02 vs 120 / 1000) is snapped onto
+  // it, so that the sample unambiguously belongs to the segment that starts there.
+  for (double& t : inner) {
+    const double k = std::round(t * rate);
+    if (std::abs(t * rate - k) < 1e-6) t = k / rate;
+  }
   if (every_sample) {
     for (int k = 1; k < samples - 1; ++k) inner.push_back(k / rate);
   }
