@@ -1,0 +1,191 @@
+// `stiffid irf`: two-sided MIMO impulse responses of a trial (estimators/irf.hpp).
+//
+//   stiffid irf TRIAL.csv --inputs fx,fy --outputs x,y --lags -0.1:1.0 [--pinv [RANK|mdl]]
+//               [--fs HZ] [-o OUT.json]
+//
+// --lags A:B is in seconds; each end must be a whole number of samples at the trial's rate (within
+// 1e-3 of a sample, the CSV reader's tolerance on time stamps), and A <= B. --pinv alone means
+// --pinv mdl. Output JSON (stdout without -o):
+//   {"fs", "inputs", "outputs", "lag_s", "irf": {OUT: {IN: [...]}}, "vaf_percent": {OUT: v},
+//    "r2_percent": v, ...}
+// vaf_percent and r2_percent come from the predicted outputs (as the shared reference); the
+// correlation estimates of eqs 12-13 are in vaf_correlation_percent and r2_correlation_percent.
+
+#include <charconv>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "apps/commands.hpp"
+#include "data/csv.hpp"
+#include "data/error.hpp"
+#include "data/output.hpp"
+#include "estimators/irf.hpp"
+
+namespace stiffid::apps {
+namespace {
+
+// Largest distance of a lag end from a whole number of samples, in samples.
+constexpr double kLagSampleTolerance = 1e-3;
+
+struct IrfCommandOptions {
+  std::string trial_path;
+  std::string inputs;
+  std::string outputs;
+  std::string lags;
+  std::string pinv;
+  double sample_rate_hz = 0.0;
+  std::string output_path;
+};
+
+double parse_seconds(const std::string& text, const std::string& spec) {
+  double value = 0.0;
+  const char* begin = text.data();
+  const char* end = text.data() + text.size();
+  const auto [ptr, error] = std::from_chars(begin, end, value);
+  if (text.empty() || error != std::errc() || ptr != end || !std::isfinite(value)) {
+    throw InputError("--lags: '" + spec + "': expected A:B in seconds (e.g. -0.1:1.0), '" + text +
+                     "' is not a number");
+  }
+  return value;
+}
+
+int seconds_to_samples(double seconds, double sample_rate_hz, const std::string& spec) {
+  const double samples = seconds * sample_rate_hz;
+  const double rounded = std::round(samples);
+  if (std::abs(samples - rounded) > kLagSampleTolerance || std::abs(rounded) > 1e9) {
+    throw InputError("--lags: '" + spec + "': " + std::to_string(seconds) +
+                     " s is not a whole number of samples at " + std::to_string(sample_rate_hz) +
+                     " Hz (" + std::to_string(samples) + " samples)");
+  }
+  return static_cast<int>(rounded);
+}
+
+std::pair<int, int> parse_lags(const std::string& spec, double sample_rate_hz) {
+  const auto colon = spec.find(':');
+  if (colon == std::string::npos || spec.find(':', colon + 1) != std::string::npos) {
+    throw InputError("--lags: '" + spec + "': expected A:B in seconds (e.g. -0.1:1.0)");
+  }
+  const double first_s = parse_seconds(spec.substr(0, colon), spec);
+  const double last_s = parse_seconds(spec.substr(colon + 1), spec);
+  if (first_s > last_s) {
+    throw InputError("--lags: '" + spec + "': the first lag must not exceed the last");
+  }
+  return {seconds_to_samples(first_s, sample_rate_hz, spec),
+          seconds_to_samples(last_s, sample_rate_hz, spec)};
+}
+
+void parse_pinv(const std::string& text, CLI::Option* flag, estimators::IrfOptions& options) {
+  if (flag->count() == 0) return;
+  if (text.empty() || text == "mdl") {
+    options.inverse = estimators::IrfInverse::mdl;
+    return;
+  }
+  int rank = 0;
+  const auto [ptr, error] = std::from_chars(text.data(), text.data() + text.size(), rank);
+  if (error != std::errc() || ptr != text.data() + text.size() || rank < 1) {
+    throw InputError("--pinv: '" + text + "': expected a positive rank or 'mdl'");
+  }
+  options.inverse = estimators::IrfInverse::rank;
+  options.rank = rank;
+}
+
+void check_distinct(const std::vector<std::string>& inputs,
+                    const std::vector<std::string>& outputs) {
+  std::set<std::string> seen;
+  for (const auto* list : {&inputs, &outputs}) {
+    for (const auto& name : *list) {
+      if (!seen.insert(name).second) {
+        throw InputError("--inputs/--outputs: channel '" + name + "' is listed more than once");
+      }
+    }
+  }
+}
+
+const char* inverse_name(estimators::IrfInverse inverse) {
+  switch (inverse) {
+    case estimators::IrfInverse::rank:
+      return "rank";
+    case estimators::IrfInverse::mdl:
+      return "mdl";
+    case estimators::IrfInverse::full:
+      break;
+  }
+  return "full";
+}
+
+nlohmann::json to_json(const estimators::IrfResult& result, const std::vector<std::string>& inputs,
+                       const std::vector<std::string>& outputs, estimators::IrfInverse inverse) {
+  auto vector = [](const Eigen::VectorXd& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
+  nlohmann::json out;
+  out["fs"] = result.sample_rate_hz;
+  out["inputs"] = inputs;
+  out["outputs"] = outputs;
+  out["lag_s"] = vector(result.lag_s);
+  out["lag_samples"] = {result.first_lag, result.last_lag};
+  for (int j = 0; j < result.outputs; ++j) {
+    for (int i = 0; i < result.inputs; ++i) out["irf"][outputs[j]][inputs[i]] = vector(result.irf(j, i));
+    out["vaf_percent"][outputs[j]] = result.vaf_percent(j);
+    out["vaf_correlation_percent"][outputs[j]] = result.vaf_correlation_percent(j);
+  }
+  out["r2_percent"] = result.r2_percent;
+  out["r2_correlation_percent"] = result.r2_correlation_percent;
+  out["inverse"] = inverse_name(inverse);
+  out["rank"] = result.rank;
+  out["full_rank"] = result.full_rank;
+  out["condition_number"] = result.condition_number;  // inf -> null
+  out["samples"] = result.predicted.rows();
+  return out;
+}
+
+void run(const IrfCommandOptions& cli, CLI::Option* pinv_flag) {
+  estimators::IrfOptions options;
+  parse_pinv(cli.pinv, pinv_flag, options);
+  const auto inputs = data::split_list(cli.inputs, "--inputs");
+  const auto outputs = data::split_list(cli.outputs, "--outputs");
+  check_distinct(inputs, outputs);
+  if (cli.sample_rate_hz < 0.0 || !std::isfinite(cli.sample_rate_hz)) {
+    throw InputError("--fs: expected a positive sampling rate in Hz");
+  }
+  parse_lags(cli.lags, 1.0);  // syntax errors before reading the file
+  data::TrialCsvOptions csv;
+  csv.sample_rate_hz = cli.sample_rate_hz;
+  const data::Trial trial = data::read_trial_csv(cli.trial_path, csv);
+  std::tie(options.first_lag, options.last_lag) = parse_lags(cli.lags, trial.sample_rate_hz);
+  data::require_samples(trial, options.last_lag - options.first_lag + 2,
+                        "the " + std::to_string(options.last_lag - options.first_lag + 1) +
+                            " IRF lags of --lags " + cli.lags);
+
+  const estimators::IrfResult result = estimators::estimate_irf(
+      trial.columns(inputs), trial.columns(outputs), trial.sample_rate_hz, options);
+  if (!result.status.ok) throw NumericalFailure(result.status.message);
+  data::write_json(cli.output_path, to_json(result, inputs, outputs, options.inverse));
+}
+
+}  // namespace
+
+void add_irf_command(CLI::App& app) {
+  auto cli = std::make_shared<IrfCommandOptions>();
+  CLI::App* sub = app.add_subcommand(
+      "irf", "Two-sided MIMO impulse responses from correlations (Perreault et al. 1999 eq 11)");
+  sub->add_option("trial", cli->trial_path, "trial CSV (t column in s, or --fs)")->required();
+  sub->add_option("--inputs", cli->inputs, "input channels, comma separated (e.g. fx,fy)")
+      ->required();
+  sub->add_option("--outputs", cli->outputs, "output channels, comma separated (e.g. x,y)")
+      ->required();
+  sub->add_option("--lags", cli->lags, "lag range A:B in s (A < 0: anticausal part)")
+      ->required()
+      ->allow_extra_args(false);
+  CLI::Option* pinv = sub->add_option(
+      "--pinv", cli->pinv,
+      "robust pseudo-inverse (Westwick & Kearney 1997): keep RANK eigenvectors, or choose them "
+      "by MDL (default when no value is given)");
+  pinv->expected(0, 1);
+  sub->add_option("--fs", cli->sample_rate_hz, "sampling rate in Hz (required without a t column)");
+  sub->add_option("-o,--output", cli->output_path, "output JSON file (default: stdout)");
+  sub->callback([cli, pinv]() { run(*cli, pinv); });
+}
+
+}  // namespace stiffid::apps
