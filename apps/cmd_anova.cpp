@@ -46,8 +46,9 @@ void run_anova(const AnovaArgs& a) {
     throw InputError("--subject is required with --within (or give --fixed/--random)");
   }
   if (!mixed && a.within.empty()) {
-    throw InputError("--within is required: name the within-subject factors (or give "
-                     "--fixed/--random for a mixed model)");
+    throw InputError(
+        "--within is required: name the within-subject factors (or give "
+        "--fixed/--random for a mixed model)");
   }
   if (mixed && !a.pairwise.empty()) {
     throw InputError("--pairwise works with --subject/--within (paired t-tests on subject means)");
@@ -63,8 +64,8 @@ void run_anova(const AnovaArgs& a) {
                                                   : validation::MixedModel::unrestricted;
     std::vector<std::string> factors = options.fixed;
     factors.insert(factors.end(), options.random.begin(), options.random.end());
-    result = validation::mixed_model_anova(validation::long_table_from_csv(csv, a.dv, factors),
-                                           options);
+    result =
+        validation::mixed_model_anova(validation::long_table_from_csv(csv, a.dv, factors), options);
     title = "Mixed-model ANOVA (" + a.mixed_model + " model, Cornfield-Tukey EMS): " + a.dv +
             " ~ " + joined(factors, " * ") + ", " + std::to_string(result.replicates) +
             " observation(s) per cell";
@@ -111,8 +112,7 @@ void add_anova_command(CLI::App& app) {
       "Exit codes: 0 ok, 2 bad input (flags, file, design), 1 an effect cannot be tested on "
       "these data (zero error variance, non-positive quasi-F denominator); no JSON is written "
       "then.");
-  cmd->add_option("data", args->data, "long-format CSV file (one row per observation)")
-      ->required();
+  cmd->add_option("data", args->data, "long-format CSV file (one row per observation)")->required();
   cmd->add_option("--dv", args->dv, "dependent-variable column (numbers)")->required();
   cmd->add_option("--subject", args->subject, "subject column (repeated-measures design)");
   cmd->add_option("--within", args->within, "within-subject factors, comma-separated");

@@ -56,8 +56,9 @@ int main(int argc, char** argv) {
     checksum += result.effects.front().f;
   }
   std::sort(ms.begin(), ms.end());
-  std::printf("bench_anova: 3-way within 20 x 4 x 4 x 3 (960 rows), %d runs: median %.3f ms, "
-              "min %.3f ms, max %.3f ms (checksum F_a %.6f)\n",
-              repeats, ms[ms.size() / 2], ms.front(), ms.back(), checksum / repeats);
+  std::printf(
+      "bench_anova: 3-way within 20 x 4 x 4 x 3 (960 rows), %d runs: median %.3f ms, "
+      "min %.3f ms, max %.3f ms (checksum F_a %.6f)\n",
+      repeats, ms[ms.size() / 2], ms.front(), ms.back(), checksum / repeats);
   return 0;
 }

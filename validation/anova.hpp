@@ -41,10 +41,10 @@ struct AnovaEffect {
   std::optional<double> p_gg;        ///< p with df1, df2 scaled by epsilon_gg
   std::optional<double> epsilon_hf;  ///< Huynh-Feldt epsilon, car's formula capped at 1
   std::optional<double> p_hf;        ///< p with df1, df2 scaled by epsilon_hf
-  std::string denominator;  ///< mixed model: the mean square(s) of the F denominator, e.g.
-                            ///< "residual", "method:kprofile" or "a:b + a:c - a:b:c"
-  bool quasi = false;       ///< mixed model: the denominator is a synthesized (quasi-F) one
-  std::string note;         ///< why the effect is not testable, or a caveat ("" when none)
+  std::string denominator;           ///< mixed model: the mean square(s) of the F denominator, e.g.
+                                     ///< "residual", "method:kprofile" or "a:b + a:c - a:b:c"
+  bool quasi = false;  ///< mixed model: the denominator is a synthesized (quasi-F) one
+  std::string note;    ///< why the effect is not testable, or a caveat ("" when none)
 };
 
 /// Mauchly's test of sphericity for a within effect with more than 2 levels (df1 / df_between > 1).
@@ -70,25 +70,25 @@ struct PairwiseComparison {
 };
 
 struct AnovaResult {
-  Status status;                            ///< failure when an effect cannot be tested
-                                            ///< because of the data (zero error variance, a
-                                            ///< non-positive synthesized denominator)
-  std::vector<AnovaEffect> effects;         ///< in R's term order (see docs/anova.md)
-  std::vector<MauchlyTest> mauchly;         ///< within effects with more than one df per subject
-  std::vector<PairwiseComparison> pairwise; ///< requested factors, pairs in level order
-  int subjects = 0;           ///< subjects (repeated measures) or 0 (mixed model)
-  int observations = 0;       ///< rows read
-  int averaged_cells = 0;     ///< subject x cell (or design cell) entries that had several rows
-                              ///< and were averaged
-  int replicates = 0;         ///< mixed model: observations per design cell
+  Status status;                             ///< failure when an effect cannot be tested
+                                             ///< because of the data (zero error variance, a
+                                             ///< non-positive synthesized denominator)
+  std::vector<AnovaEffect> effects;          ///< in R's term order (see docs/anova.md)
+  std::vector<MauchlyTest> mauchly;          ///< within effects with more than one df per subject
+  std::vector<PairwiseComparison> pairwise;  ///< requested factors, pairs in level order
+  int subjects = 0;                          ///< subjects (repeated measures) or 0 (mixed model)
+  int observations = 0;                      ///< rows read
+  int averaged_cells = 0;  ///< subject x cell (or design cell) entries that had several rows
+                           ///< and were averaged
+  int replicates = 0;      ///< mixed model: observations per design cell
   std::vector<std::string> notes;  ///< things a user should know (averaging, skipped tests)
 };
 
 struct RepeatedMeasuresOptions {
-  std::string subject;               ///< subject column
-  std::vector<std::string> within;   ///< within-subject factors (each subject sees every cell)
-  std::vector<std::string> between;  ///< between-subject factors (constant per subject)
-  std::vector<std::string> pairwise; ///< within factors whose level pairs are compared
+  std::string subject;                ///< subject column
+  std::vector<std::string> within;    ///< within-subject factors (each subject sees every cell)
+  std::vector<std::string> between;   ///< between-subject factors (constant per subject)
+  std::vector<std::string> pairwise;  ///< within factors whose level pairs are compared
 };
 
 /// Univariate repeated-measures ANOVA with any number of within and between factors.
@@ -101,8 +101,7 @@ struct RepeatedMeasuresOptions {
 /// SS = tr H, SS_error = tr E, df1 = df_T d_S, df2 = (N - P) d_S (as car::Anova, type III).
 /// GG epsilon = tr(E)^2 / (d tr(E^2)); HF = ((N-P+1) d GG - 2) / (d (N-P - d GG)) capped at 1.
 /// Throws InputError on a bad design (missing cell, single level, too few subjects).
-AnovaResult repeated_measures_anova(const LongTable& table,
-                                    const RepeatedMeasuresOptions& options);
+AnovaResult repeated_measures_anova(const LongTable& table, const RepeatedMeasuresOptions& options);
 
 enum class MixedModel {
   unrestricted,  ///< interaction components enter the EMS of every contained effect (SPSS, lme4)

@@ -46,9 +46,9 @@ Eigen::MatrixXd project_term(const Eigen::MatrixXd& y, const std::vector<int>& d
   for (size_t m = 0; m < dims.size(); ++m) {
     const int levels = dims[m];
     const bool in_term = std::find(term.begin(), term.end(), static_cast<int>(m)) != term.end();
-    const Eigen::MatrixXd basis = in_term ? orthonormal_contrasts(levels)
-                                          : Eigen::MatrixXd::Constant(levels, 1, 1.0 / std::sqrt(
-                                                                                       levels));
+    const Eigen::MatrixXd basis =
+        in_term ? orthonormal_contrasts(levels)
+                : Eigen::MatrixXd::Constant(levels, 1, 1.0 / std::sqrt(levels));
     const int q = static_cast<int>(basis.cols());
     long outer = 1, inner = 1;
     for (size_t i = 0; i < m; ++i) outer *= shape[i];

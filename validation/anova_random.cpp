@@ -79,7 +79,8 @@ AnovaResult mixed_model_anova(const LongTable& table, const MixedAnovaOptions& o
       const long missing = std::count(count.begin(), count.end(), 0);
       throw InputError(table.source + ": no observation for cell " + label(c) +
                        "; the mixed-model ANOVA needs every combination of --fixed and --random "
-                       "levels (" + std::to_string(missing) + " of " + std::to_string(cells) +
+                       "levels (" +
+                       std::to_string(missing) + " of " + std::to_string(cells) +
                        " cells missing)");
     }
     if (count[c] != n) {

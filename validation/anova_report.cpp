@@ -77,8 +77,8 @@ nlohmann::json anova_to_json(const AnovaResult& result) {
   if (!result.pairwise.empty()) {
     out["pairwise"] = nlohmann::json::array();
     for (const auto& pc : result.pairwise) {
-      nlohmann::json j{{"factor", pc.factor}, {"level1", pc.level1},  {"level2", pc.level2},
-                       {"mean_diff", pc.mean_diff}, {"se", pc.se},    {"df", pc.df}};
+      nlohmann::json j{{"factor", pc.factor},       {"level1", pc.level1}, {"level2", pc.level2},
+                       {"mean_diff", pc.mean_diff}, {"se", pc.se},         {"df", pc.df}};
       if (pc.testable) {
         j["t"] = pc.t;
         j["p"] = pc.p;

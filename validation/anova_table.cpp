@@ -77,8 +77,8 @@ FactorCoding code_factor(const LongTable& table, const std::string& name, const 
   }
   if (coding.level_count() < min_levels) {
     std::ostringstream msg;
-    msg << table.source << ": " << flag << " factor '" << name << "' has "
-        << coding.level_count() << " level" << (coding.level_count() == 1 ? "" : "s");
+    msg << table.source << ": " << flag << " factor '" << name << "' has " << coding.level_count()
+        << " level" << (coding.level_count() == 1 ? "" : "s");
     if (coding.level_count() == 1) msg << " ('" << coding.levels[0] << "')";
     msg << "; an effect needs at least " << min_levels << " levels to compare";
     throw InputError(msg.str());

@@ -121,9 +121,9 @@ Design build_design(const LongTable& table, const RepeatedMeasuresOptions& o) {
 
 // Between design with sum-to-zero coding (R's contr.sum), full factorial: column blocks per term.
 struct BetweenDesign {
-  Eigen::MatrixXd x;                       // (N x P)
-  std::vector<std::vector<int>> terms;     // [T] factor indices, term 0 = intercept (empty)
-  std::vector<int> first_col, col_count;   // [T]
+  Eigen::MatrixXd x;                      // (N x P)
+  std::vector<std::vector<int>> terms;    // [T] factor indices, term 0 = intercept (empty)
+  std::vector<int> first_col, col_count;  // [T]
 };
 
 BetweenDesign build_between(const LongTable& table, const Design& d) {
@@ -142,7 +142,8 @@ BetweenDesign build_between(const LongTable& table, const Design& d) {
         const int level = d.between_levels[s][f];
         for (int j = 0; j < levels - 1; ++j) {
           const double code = level == levels - 1 ? -1.0 : (level == j ? 1.0 : 0.0);
-          for (long k = 0; k < block.cols(); ++k) next(s, k * (levels - 1) + j) = block(s, k) * code;
+          for (long k = 0; k < block.cols(); ++k)
+            next(s, k * (levels - 1) + j) = block(s, k) * code;
         }
       }
       block = std::move(next);
@@ -153,7 +154,8 @@ BetweenDesign build_between(const LongTable& table, const Design& d) {
   }
   const int p = bd.first_col.back() + bd.col_count.back();
   bd.x.resize(n, p);
-  for (size_t t = 0; t < blocks.size(); ++t) bd.x.middleCols(bd.first_col[t], bd.col_count[t]) = blocks[t];
+  for (size_t t = 0; t < blocks.size(); ++t)
+    bd.x.middleCols(bd.first_col[t], bd.col_count[t]) = blocks[t];
   // Every combination of between levels needs a subject, else X is rank deficient.
   if (b > 0) {
     std::map<std::vector<int>, int> groups;
@@ -196,7 +198,8 @@ MauchlyTest mauchly(const std::string& name, const Eigen::MatrixXd& e, double n,
   const double p = static_cast<double>(e.rows());
   const double log_w = lambda.array().log().sum() - p * std::log(lambda.mean());
   const double rho = 1.0 - (2.0 * p * p + p + 2.0) / (6.0 * p * n);
-  const double w2 = (p + 2.0) * (p - 1.0) * (p - 2.0) * (2.0 * p * p * p + 6.0 * p * p + 3.0 * cells + 2.0) /
+  const double w2 = (p + 2.0) * (p - 1.0) * (p - 2.0) *
+                    (2.0 * p * p * p + 6.0 * p * p + 3.0 * cells + 2.0) /
                     (288.0 * std::pow(n * p * rho, 2));
   const double z = -n * rho * log_w;
   const double f = p * (p + 1.0) / 2.0 - 1.0;
@@ -284,16 +287,16 @@ AnovaResult repeated_measures_anova(const LongTable& table,
   for (const auto& s_term : within_terms) {
     const Eigen::MatrixXd z = detail::project_term(d.y, d.dims, s_term);  // (N x d)
     const int dof = static_cast<int>(z.cols());
-    const Eigen::MatrixXd b = xtx_inv * (bd.x.transpose() * z);           // (P x d)
+    const Eigen::MatrixXd b = xtx_inv * (bd.x.transpose() * z);  // (P x d)
     const Eigen::MatrixXd resid = z - bd.x * b;
-    const Eigen::MatrixXd e = resid.transpose() * resid;                  // (d x d)
+    const Eigen::MatrixXd e = resid.transpose() * resid;  // (d x d)
     const double ss_error = e.trace();
     error_ss_total += ss_error;
     for (size_t t = 0; t < bd.terms.size(); ++t) {
       if (s_term.empty() && t == 0) continue;  // the grand mean
       const Eigen::MatrixXd lb = b.middleRows(bd.first_col[t], bd.col_count[t]);
-      const Eigen::MatrixXd middle = xtx_inv.block(bd.first_col[t], bd.first_col[t],
-                                                   bd.col_count[t], bd.col_count[t]);
+      const Eigen::MatrixXd middle =
+          xtx_inv.block(bd.first_col[t], bd.first_col[t], bd.col_count[t], bd.col_count[t]);
       const Eigen::MatrixXd h = lb.transpose() * middle.ldlt().solve(lb);
       AnovaEffect eff;
       for (const int f : bd.terms[t]) eff.factors.push_back(d.between[f].name);
@@ -333,7 +336,8 @@ AnovaResult repeated_measures_anova(const LongTable& table,
               Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(e, Eigen::EigenvaluesOnly)
                   .eigenvalues();
           if (error_df >= dof && lambda.minCoeff() > kSingularEigenFraction * lambda.maxCoeff()) {
-            result.mauchly.push_back(mauchly(eff.name, e, error_df, static_cast<double>(d.y.cols())));
+            result.mauchly.push_back(
+                mauchly(eff.name, e, error_df, static_cast<double>(d.y.cols())));
           } else {
             mauchly_skipped.push_back(eff.name);
           }

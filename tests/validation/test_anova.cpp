@@ -33,9 +33,9 @@ bool close(double a, double b, double rel = kRel) {
   return std::fabs(a - b) <= rel * std::max({std::fabs(a), std::fabs(b), 1e-300});
 }
 
-#define CHECK_REL(a, b, what)                                                                  \
-  BOOST_CHECK_MESSAGE(close((a), (b)), what << ": got " << std::setprecision(17) << (a)        \
-                                            << ", expected " << (b))
+#define CHECK_REL(a, b, what)          \
+  BOOST_CHECK_MESSAGE(close((a), (b)), \
+                      what << ": got " << std::setprecision(17) << (a) << ", expected " << (b))
 
 v::LongTable load(const std::string& name, const std::vector<std::string>& factors) {
   return v::long_table_from_csv(d::read_csv(kDir + name + ".csv"), "err", factors);
@@ -103,8 +103,10 @@ void check_against_afex(const std::string& dataset, const v::AnovaResult& r) {
     BOOST_CHECK_EQUAL(r.mauchly.size(), mauchly.size());
     for (size_t i = 0; i < mauchly.size() && i < r.mauchly.size(); ++i) {
       BOOST_CHECK_EQUAL(r.mauchly[i].effect, mauchly[i].at("effect"));
-      CHECK_REL(r.mauchly[i].w, num(mauchly[i], "W"), dataset << " Mauchly W " << r.mauchly[i].effect);
-      CHECK_REL(r.mauchly[i].p, num(mauchly[i], "p"), dataset << " Mauchly p " << r.mauchly[i].effect);
+      CHECK_REL(r.mauchly[i].w, num(mauchly[i], "W"),
+                dataset << " Mauchly W " << r.mauchly[i].effect);
+      CHECK_REL(r.mauchly[i].p, num(mauchly[i], "p"),
+                dataset << " Mauchly p " << r.mauchly[i].effect);
     }
   }
 }
@@ -199,16 +201,15 @@ BOOST_AUTO_TEST_CASE(one_within_factor_matches_afex) {
 }
 
 BOOST_AUTO_TEST_CASE(two_within_factors_match_afex) {
-  const auto r =
-      within_anova(load("twoway", {"id", "method", "noise"}), {"method", "noise"}, {},
-                   {"method", "noise"});
+  const auto r = within_anova(load("twoway", {"id", "method", "noise"}), {"method", "noise"}, {},
+                              {"method", "noise"});
   check_against_afex("twoway", r);
   check_pairwise("twoway", r);
 }
 
 BOOST_AUTO_TEST_CASE(three_within_factors_match_afex) {
-  check_against_afex("threeway", within_anova(load("threeway", {"id", "a", "b", "c"}),
-                                              {"a", "b", "c"}));
+  check_against_afex("threeway",
+                     within_anova(load("threeway", {"id", "a", "b", "c"}), {"a", "b", "c"}));
 }
 
 BOOST_AUTO_TEST_CASE(balanced_between_within_design_matches_afex) {
@@ -235,8 +236,8 @@ BOOST_AUTO_TEST_CASE(several_rows_per_cell_are_averaged_as_afex_and_reported) {
 }
 
 BOOST_AUTO_TEST_CASE(two_level_factor_f_is_squared_paired_t_and_epsilons_are_one) {
-  const std::vector<std::vector<double>> y{{3.1, 4.0}, {2.5, 3.9}, {4.2, 4.4}, {3.3, 5.1},
-                                           {2.9, 3.0}, {3.8, 4.9}};
+  const std::vector<std::vector<double>> y{{3.1, 4.0}, {2.5, 3.9}, {4.2, 4.4},
+                                           {3.3, 5.1}, {2.9, 3.0}, {3.8, 4.9}};
   // Paired t by hand: differences, their mean and sample sd.
   std::vector<double> diff;
   for (const auto& row : y) diff.push_back(row[0] - row[1]);
@@ -316,8 +317,11 @@ BOOST_AUTO_TEST_CASE(zero_error_variance_is_a_reported_failure_without_nan) {
 }
 
 BOOST_AUTO_TEST_CASE(single_level_factor_is_an_input_error_naming_it) {
-  expect_input_error([] { within_anova(one_factor_table({{1}, {2}, {3}}), {"method"}); },
-                     {"--within", "method", "1 level", "'m0'"});
+  expect_input_error(
+      [] {
+        within_anova(one_factor_table({{1}, {2}, {3}}), {"method"});
+      },
+      {"--within", "method", "1 level", "'m0'"});
 }
 
 BOOST_AUTO_TEST_CASE(fewer_subjects_than_levels_still_gives_f_and_notes_skipped_mauchly) {
@@ -339,12 +343,16 @@ BOOST_AUTO_TEST_CASE(fewer_subjects_than_levels_still_gives_f_and_notes_skipped_
 }
 
 BOOST_AUTO_TEST_CASE(missing_cell_names_the_subject_and_the_cell) {
-  const std::string csv = "id,method,noise,err\ns1,a,x,1\ns1,a,y,2\ns1,b,x,3\ns1,b,y,4\n"
-                          "s2,a,x,1\ns2,b,x,3\ns2,b,y,5\ns3,a,x,1\ns3,a,y,2\ns3,b,x,3\ns3,b,y,1\n";
-  const auto t = v::long_table_from_csv(d::parse_csv(csv, "data.csv"), "err",
-                                        {"id", "method", "noise"});
-  expect_input_error([&] { within_anova(t, {"method", "noise"}); },
-                     {"data.csv", "subject 's2'", "method=a, noise=y", "data.csv:6"});
+  const std::string csv =
+      "id,method,noise,err\ns1,a,x,1\ns1,a,y,2\ns1,b,x,3\ns1,b,y,4\n"
+      "s2,a,x,1\ns2,b,x,3\ns2,b,y,5\ns3,a,x,1\ns3,a,y,2\ns3,b,x,3\ns3,b,y,1\n";
+  const auto t =
+      v::long_table_from_csv(d::parse_csv(csv, "data.csv"), "err", {"id", "method", "noise"});
+  expect_input_error(
+      [&] {
+        within_anova(t, {"method", "noise"});
+      },
+      {"data.csv", "subject 's2'", "method=a, noise=y", "data.csv:6"});
 }
 
 BOOST_AUTO_TEST_CASE(between_factor_changing_within_a_subject_is_an_input_error) {
@@ -355,15 +363,21 @@ BOOST_AUTO_TEST_CASE(between_factor_changing_within_a_subject_is_an_input_error)
 
 BOOST_AUTO_TEST_CASE(bad_numbers_and_columns_name_file_line_column) {
   expect_input_error(
-      [] { v::long_table_from_csv(d::parse_csv("id,m,err\ns1,a,1\ns1,b,x\n", "f.csv"), "err",
-                                  {"id", "m"}); },
+      [] {
+        v::long_table_from_csv(d::parse_csv("id,m,err\ns1,a,1\ns1,b,x\n", "f.csv"), "err",
+                               {"id", "m"});
+      },
       {"f.csv:3:3", "err"});
   expect_input_error(
-      [] { v::long_table_from_csv(d::parse_csv("id,m,err\ns1,a,1\n", "f.csv"), "err",
-                                  {"id", "noise"}); },
+      [] {
+        v::long_table_from_csv(d::parse_csv("id,m,err\ns1,a,1\n", "f.csv"), "err", {"id", "noise"});
+      },
       {"noise"});
-  expect_input_error([] { within_anova(one_factor_table({{1, 2}, {2, 3}}), {"method"}, {}, {"id"}); },
-                     {"--pairwise", "id"});
+  expect_input_error(
+      [] {
+        within_anova(one_factor_table({{1, 2}, {2, 3}}), {"method"}, {}, {"id"});
+      },
+      {"--pairwise", "id"});
 }
 
 BOOST_AUTO_TEST_CASE(json_has_the_issue_keys_and_omits_those_that_do_not_apply) {
@@ -377,13 +391,13 @@ BOOST_AUTO_TEST_CASE(json_has_the_issue_keys_and_omits_those_that_do_not_apply) 
   const auto& gm = j["effects"][2];
   BOOST_CHECK_EQUAL(gm["effect"], "group:method");
   BOOST_CHECK_EQUAL(gm["type"], "within");
-  for (const char* key : {"df1", "df2", "F", "p", "pes", "ges", "epsilon_gg", "p_gg", "epsilon_hf",
-                          "p_hf"}) {
+  for (const char* key :
+       {"df1", "df2", "F", "p", "pes", "ges", "epsilon_gg", "p_gg", "epsilon_hf", "p_hf"}) {
     BOOST_CHECK_MESSAGE(gm.contains(key), key);
   }
   BOOST_CHECK(j.contains("mauchly") && j["mauchly"][0].contains("W"));
-  for (const char* key : {"factor", "level1", "level2", "mean_diff", "se", "t", "df", "p",
-                          "p_holm", "p_bonferroni"}) {
+  for (const char* key : {"factor", "level1", "level2", "mean_diff", "se", "t", "df", "p", "p_holm",
+                          "p_bonferroni"}) {
     BOOST_CHECK_MESSAGE(j["pairwise"][0].contains(key), key);
   }
 }

@@ -28,7 +28,8 @@ std::string slurp(const fs::path& p) {
 }
 
 fs::path scratch() {
-  const fs::path dir = fs::temp_directory_path() / ("stiffid_anova_cli_" + std::to_string(getpid()));
+  const fs::path dir =
+      fs::temp_directory_path() / ("stiffid_anova_cli_" + std::to_string(getpid()));
   fs::create_directories(dir);
   return dir;
 }
@@ -71,8 +72,9 @@ BOOST_AUTO_TEST_CASE(json_on_stdout_is_clean_and_matches_the_reference) {
 
 BOOST_AUTO_TEST_CASE(output_file_gets_json_and_stdout_the_table) {
   const fs::path out = scratch() / "res.json";
-  const Run r = run(kDir + "oneway.csv --dv err --subject id --within method --pairwise method -o " +
-                    out.string());
+  const Run r =
+      run(kDir + "oneway.csv --dv err --subject id --within method --pairwise method -o " +
+          out.string());
   BOOST_REQUIRE_EQUAL(r.code, 0);
   BOOST_CHECK(r.out.find("method") != std::string::npos);
   BOOST_CHECK(r.out.find("Mauchly") != std::string::npos);
@@ -82,8 +84,9 @@ BOOST_AUTO_TEST_CASE(output_file_gets_json_and_stdout_the_table) {
 }
 
 BOOST_AUTO_TEST_CASE(random_design_command_line) {
-  const Run r = run(kDir + "random3.csv --dv err --fixed method --random kprofile,cprofile "
-                           "--mixed-model restricted");
+  const Run r = run(kDir +
+                    "random3.csv --dv err --fixed method --random kprofile,cprofile "
+                    "--mixed-model restricted");
   BOOST_REQUIRE_EQUAL(r.code, 0);
   const auto j = nlohmann::json::parse(r.out);
   BOOST_CHECK_EQUAL(j["effects"][0]["effect"], "method");
@@ -103,7 +106,8 @@ BOOST_AUTO_TEST_CASE(missing_cell_exits_2_naming_subject_and_cell) {
 }
 
 BOOST_AUTO_TEST_CASE(zero_error_variance_exits_1_and_writes_no_file) {
-  const fs::path data = write("flat.csv", "id,m,err\ns1,a,1\ns1,b,2\ns2,a,3\ns2,b,4\ns3,a,0\ns3,b,1\n");
+  const fs::path data =
+      write("flat.csv", "id,m,err\ns1,a,1\ns1,b,2\ns2,a,3\ns2,b,4\ns3,a,0\ns3,b,1\n");
   const fs::path out = scratch() / "never.json";
   fs::remove(out);
   const Run r = run(data.string() + " --dv err --subject id --within m -o " + out.string());
@@ -117,7 +121,8 @@ BOOST_AUTO_TEST_CASE(conflicting_flags_exit_2) {
                     2);
   BOOST_CHECK_EQUAL(run(kDir + "oneway.csv --dv err --subject id").code, 2);
   BOOST_CHECK_EQUAL(
-      run(kDir + "random3.csv --dv err --fixed method --random kprofile --mixed-model odd").code, 2);
+      run(kDir + "random3.csv --dv err --fixed method --random kprofile --mixed-model odd").code,
+      2);
 }
 
 BOOST_AUTO_TEST_CASE(averaged_cells_are_noted_on_stderr) {

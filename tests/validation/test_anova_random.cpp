@@ -28,8 +28,9 @@ bool close(double a, double b) {
   return std::fabs(a - b) <= kRel * std::max({std::fabs(a), std::fabs(b), 1e-300});
 }
 
-#define CHECK_REL(a, b, what) \
-  BOOST_CHECK_MESSAGE(close((a), (b)), what << ": got " << std::setprecision(17) << (a) << ", expected " << (b))
+#define CHECK_REL(a, b, what)          \
+  BOOST_CHECK_MESSAGE(close((a), (b)), \
+                      what << ": got " << std::setprecision(17) << (a) << ", expected " << (b))
 
 v::AnovaResult run(const std::string& name, const std::vector<std::string>& fixed,
                    const std::vector<std::string>& random, v::MixedModel model) {
@@ -141,7 +142,8 @@ BOOST_AUTO_TEST_CASE(one_observation_per_cell_uses_highest_interaction_as_residu
   BOOST_CHECK(r.status.ok);
   BOOST_CHECK(check("random_n1", "unrestricted", r).empty());
   BOOST_CHECK(find(r, "method:kprofile:noise") == nullptr);
-  BOOST_CHECK_EQUAL(find(r, "kprofile")->denominator, "method:kprofile + noise:kprofile - residual");
+  BOOST_CHECK_EQUAL(find(r, "kprofile")->denominator,
+                    "method:kprofile + noise:kprofile - residual");
   BOOST_CHECK_EQUAL(find(r, "noise")->denominator, "noise:kprofile");
   BOOST_REQUIRE(!r.notes.empty());
   BOOST_CHECK(r.notes[0].find("residual") != std::string::npos);
@@ -155,7 +157,8 @@ BOOST_AUTO_TEST_CASE(two_factor_mixed_model_gives_textbook_exact_tests) {
   for (int i = 0; i < 2; ++i)
     for (int j = 0; j < 3; ++j)
       for (int k = 0; k < 2; ++k)
-        csv += "a" + std::to_string(i) + ",b" + std::to_string(j) + "," + std::to_string(y[i][j][k]) + "\n";
+        csv += "a" + std::to_string(i) + ",b" + std::to_string(j) + "," +
+               std::to_string(y[i][j][k]) + "\n";
   // Hand-computed sums of squares (cell, marginal and grand means of the 12 numbers above).
   double grand = 0, ma[2] = {0, 0}, mb[3] = {0, 0, 0}, cell[2][3] = {};
   for (int i = 0; i < 2; ++i)
@@ -205,9 +208,7 @@ BOOST_AUTO_TEST_CASE(unbalanced_random_design_is_an_input_error) {
   o.fixed = {"a"};
   o.random = {"b"};
   expect_input_error(
-      [&] {
-        v::mixed_model_anova(table_from("a,b,err\nx,p,1\nx,q,2\ny,p,3\ny,q,4\ny,q,5\n"), o);
-      },
+      [&] { v::mixed_model_anova(table_from("a,b,err\nx,p,1\nx,q,2\ny,p,3\ny,q,4\ny,q,5\n"), o); },
       {"unbalanced", "a=y, b=q", "r.csv:5"});
 }
 
@@ -215,9 +216,8 @@ BOOST_AUTO_TEST_CASE(single_level_random_factor_is_an_input_error) {
   v::MixedAnovaOptions o;
   o.fixed = {"a"};
   o.random = {"b"};
-  expect_input_error(
-      [&] { v::mixed_model_anova(table_from("a,b,err\nx,p,1\ny,p,2\n"), o); },
-      {"--random", "'b'", "1 level"});
+  expect_input_error([&] { v::mixed_model_anova(table_from("a,b,err\nx,p,1\ny,p,2\n"), o); },
+                     {"--random", "'b'", "1 level"});
 }
 
 BOOST_AUTO_TEST_CASE(zero_residual_variance_is_a_reported_failure) {
