@@ -1,6 +1,8 @@
 #include "data/csv.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <string_view>
 #include <cmath>
 #include <fstream>
 #include <iomanip>
@@ -65,6 +67,47 @@ std::pair<std::string, std::string> name_and_unit(const std::string& header) {
   return {header, ""};
 }
 
+void check_header(const std::vector<std::string>& cells, const std::string& source, int line) {
+  std::set<std::string> seen;
+  for (size_t c = 0; c < cells.size(); ++c) {
+    const std::string name = name_and_unit(cells[c]).first;
+    const std::string at = source + ":" + std::to_string(line) + ":" + std::to_string(c + 1);
+    if (name.empty()) throw InputError(at + ": empty column name in the header");
+    if (!seen.insert(name).second) throw InputError(at + ": duplicate column '" + name + "'");
+  }
+}
+
+InputError ragged(const std::string& source, int line, size_t cells, size_t columns) {
+  return InputError(source + ":" + std::to_string(line) + ": ragged row: " + std::to_string(cells) +
+                    " cells, expected " + std::to_string(columns) + " as in the header");
+}
+
+// A cell as a finite double, or an InputError naming file:line:column, the column and the text.
+double parse_number(std::string_view text, const std::string& source, int line, int col,
+                    const std::string& column) {
+  double value = 0.0;
+  const char* end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+  const std::string where = source + ":" + std::to_string(line) + ":" + std::to_string(col + 1);
+  if (text.empty() || ec != std::errc() || ptr != end) {
+    throw InputError(where + ": column '" + column + "': expected a number, got '" +
+                     std::string(text) + "'");
+  }
+  if (!std::isfinite(value)) {
+    throw InputError(where + ": column '" + column + "': expected a finite number, got '" +
+                     std::string(text) + "'");
+  }
+  return value;
+}
+
+std::string read_text(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open (missing file or no permission)");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
 }  // namespace
 
 int CsvTable::find(const std::string& name) const {
@@ -91,19 +134,7 @@ std::string CsvTable::where(int row, int col) const {
 }
 
 double CsvTable::number(int row, int col) const {
-  const std::string& text = cells[row][col];
-  double value = 0.0;
-  const char* end = text.data() + text.size();
-  const auto [ptr, ec] = std::from_chars(text.data(), end, value);
-  if (text.empty() || ec != std::errc() || ptr != end) {
-    throw InputError(where(row, col) + ": column '" + header[col] + "': expected a number, got '" +
-                     text + "'");
-  }
-  if (!std::isfinite(value)) {
-    throw InputError(where(row, col) + ": column '" + header[col] +
-                     "': expected a finite number, got '" + text + "'");
-  }
-  return value;
+  return parse_number(cells[row][col], source, line_numbers[row], col, header[col]);
 }
 
 CsvTable parse_csv(const std::string& text, const std::string& source) {
@@ -118,21 +149,13 @@ CsvTable parse_csv(const std::string& text, const std::string& source) {
     if (skipped(line)) continue;
     std::vector<std::string> cells = split_line(line);
     if (!have_header) {
-      std::set<std::string> seen;
-      for (size_t c = 0; c < cells.size(); ++c) {
-        const std::string name = name_and_unit(cells[c]).first;
-        const std::string at = source + ":" + std::to_string(line_number) + ":" + std::to_string(c + 1);
-        if (name.empty()) throw InputError(at + ": empty column name in the header");
-        if (!seen.insert(name).second) throw InputError(at + ": duplicate column '" + name + "'");
-      }
+      check_header(cells, source, line_number);
       table.header = std::move(cells);
       have_header = true;
       continue;
     }
     if (cells.size() != table.header.size()) {
-      throw InputError(source + ":" + std::to_string(line_number) + ": ragged row: " +
-                       std::to_string(cells.size()) + " cells, expected " +
-                       std::to_string(table.header.size()) + " as in the header");
+      throw ragged(source, line_number, cells.size(), table.header.size());
     }
     table.cells.push_back(std::move(cells));
     table.line_numbers.push_back(line_number);
@@ -141,53 +164,116 @@ CsvTable parse_csv(const std::string& text, const std::string& source) {
   return table;
 }
 
-CsvTable read_csv(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open (missing file or no permission)");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_csv(text.str(), path);
+CsvTable read_csv(const std::string& path) { return parse_csv(read_text(path), path); }
+
+namespace {
+
+std::string_view trim_view(std::string_view s) {
+  const auto first = s.find_first_not_of(" \t\r");
+  if (first == std::string_view::npos) return {};
+  const auto last = s.find_last_not_of(" \t\r");
+  return s.substr(first, last - first + 1);
 }
 
-Trial trial_from_csv(const CsvTable& table, const TrialCsvOptions& options) {
-  Trial trial;
-  trial.source = table.source;
-  const int time_col = table.find(options.time_column);
-  const int rows = table.row_count();
+// Shortest text that reads back as `v` (what the user most likely wrote).
+std::string shortest(double v) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof buffer, v);
+  return std::string(buffer, result.ptr);
+}
+
+// A trial file's numbers: header cells, values row-major (rows x header.size()), and the 1-based
+// line of each row, for messages.
+struct NumericCsv {
+  std::vector<std::string> header;
+  std::vector<double> values;
+  std::vector<int> lines;
+};
+
+// Streams the text once, converting cells to doubles as they are met (no per-cell strings: a
+// 10-minute, 1 kHz trial has millions of cells). Quoted cells take the general splitter.
+NumericCsv parse_numeric(const std::string& text, const std::string& source) {
+  NumericCsv out;
+  size_t pos = 0;
+  int line = 0;
+  while (pos < text.size()) {
+    size_t eol = text.find('\n', pos);
+    if (eol == std::string::npos) eol = text.size();
+    const std::string_view row(text.data() + pos, eol - pos);
+    pos = eol + 1;
+    ++line;
+    if (skipped(std::string(row.substr(0, std::min<size_t>(row.size(), 64))))) continue;
+    if (out.header.empty()) {
+      out.header = split_line(std::string(row));
+      check_header(out.header, source, line);
+      continue;
+    }
+    const size_t columns = out.header.size();
+    const size_t cells = 1 + std::count(row.begin(), row.end(), ',');
+    const bool quoted = row.find('"') != std::string_view::npos;
+    if (!quoted && cells != columns) throw ragged(source, line, cells, columns);
+    std::vector<std::string> split;
+    if (quoted) {
+      split = split_line(std::string(row));
+      if (split.size() != columns) throw ragged(source, line, split.size(), columns);
+    }
+    size_t start = 0;
+    for (size_t c = 0; c < columns; ++c) {
+      std::string_view cell;
+      if (quoted) {
+        cell = split[c];
+      } else {
+        const size_t comma = std::min(row.find(',', start), row.size());
+        cell = trim_view(row.substr(start, comma - start));
+        start = comma + 1;
+      }
+      out.values.push_back(parse_number(cell, source, line, static_cast<int>(c), out.header[c]));
+    }
+    out.lines.push_back(line);
+  }
+  if (out.header.empty()) throw InputError(source + ": empty file, expected a header row");
+  return out;
+}
+
+std::string at(const std::string& source, int line, int col) {
+  return source + ":" + std::to_string(line) + ":" + std::to_string(col + 1);
+}
+
+Trial build_trial(const NumericCsv& csv, const std::string& source, const TrialCsvOptions& options) {
+  const int columns = static_cast<int>(csv.header.size());
+  const int rows = static_cast<int>(csv.lines.size());
+  int time_col = -1;
+  for (int c = 0; c < columns; ++c) {
+    if (name_and_unit(csv.header[c]).first == options.time_column) time_col = c;
+  }
   if (time_col < 0 && options.sample_rate_hz <= 0.0) {
-    throw InputError(table.source + ":1: no time column '" + options.time_column +
+    throw InputError(source + ":1: no time column '" + options.time_column +
                      "'; give the sampling rate (--fs HZ)");
   }
-  if (rows < 2) throw InputError(table.source + ": " + std::to_string(rows) + " data rows, need at least 2");
+  if (rows < 2) throw InputError(source + ": " + std::to_string(rows) + " data rows, need at least 2");
 
-  trial.samples.resize(rows, table.column_count() - (time_col >= 0 ? 1 : 0));
-  for (int c = 0; c < table.column_count(); ++c) {
+  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>
+      all(csv.values.data(), rows, columns);
+  Trial trial;
+  trial.source = source;
+  trial.samples.resize(rows, columns - (time_col >= 0 ? 1 : 0));
+  for (int c = 0, k = 0; c < columns; ++c) {
     if (c == time_col) continue;
-    const auto [name, unit] = name_and_unit(table.header[c]);
+    const auto [name, unit] = name_and_unit(csv.header[c]);
     trial.names.push_back(name);
     trial.units.push_back(unit);
+    trial.samples.col(k++) = all.col(c);
   }
-  Eigen::VectorXd time(rows);
-  for (int r = 0; r < rows; ++r) {
-    int k = 0;
-    for (int c = 0; c < table.column_count(); ++c) {
-      const double v = table.number(r, c);
-      if (c == time_col) {
-        time(r) = v;
-      } else {
-        trial.samples(r, k++) = v;
-      }
-    }
-  }
-
   if (time_col < 0) {
     trial.sample_rate_hz = options.sample_rate_hz;
     return trial;
   }
+
+  const Eigen::VectorXd time = all.col(time_col);
   for (int r = 1; r < rows; ++r) {
     if (!(time(r) > time(r - 1))) {
-      throw InputError(table.where(r, time_col) + ": time must increase, got " +
-                       table.cells[r][time_col] + " after " + table.cells[r - 1][time_col]);
+      throw InputError(at(source, csv.lines[r], time_col) + ": time must increase, got " +
+                       shortest(time(r)) + " after " + shortest(time(r - 1)));
     }
   }
   const double step = (time(rows - 1) - time(0)) / (rows - 1);
@@ -195,9 +281,10 @@ Trial trial_from_csv(const CsvTable& table, const TrialCsvOptions& options) {
     const double deviation = std::abs(time(r) - (time(0) + r * step));
     if (deviation > options.time_tolerance * step) {
       std::ostringstream msg;
-      msg << table.where(r, time_col) << ": non-uniform sampling: t = " << table.cells[r][time_col]
-          << " s is " << deviation / step << " steps off the uniform grid of step " << step
-          << " s (tolerance " << options.time_tolerance << " step)";
+      msg << at(source, csv.lines[r], time_col) << ": non-uniform sampling: t = "
+          << shortest(time(r)) << " s is " << deviation / step
+          << " steps off the uniform grid of step " << step << " s (tolerance "
+          << options.time_tolerance << " step)";
       throw InputError(msg.str());
     }
   }
@@ -206,15 +293,22 @@ Trial trial_from_csv(const CsvTable& table, const TrialCsvOptions& options) {
   if (options.sample_rate_hz > 0.0 &&
       std::abs(trial.sample_rate_hz - options.sample_rate_hz) > 1e-6 * options.sample_rate_hz) {
     std::ostringstream msg;
-    msg << table.source << ": --fs " << options.sample_rate_hz << " Hz disagrees with the time column ("
+    msg << source << ": --fs " << options.sample_rate_hz << " Hz disagrees with the time column ("
         << trial.sample_rate_hz << " Hz)";
     throw InputError(msg.str());
   }
   return trial;
 }
 
+}  // namespace
+
+Trial parse_trial_csv(const std::string& text, const std::string& source,
+                      const TrialCsvOptions& options) {
+  return build_trial(parse_numeric(text, source), source, options);
+}
+
 Trial read_trial_csv(const std::string& path, const TrialCsvOptions& options) {
-  return trial_from_csv(read_csv(path), options);
+  return parse_trial_csv(read_text(path), path, options);
 }
 
 std::string trial_to_csv(const Trial& trial, bool with_units) {

@@ -42,11 +42,13 @@ struct TrialCsvOptions {
                                    ///< a fraction of the sampling step
 };
 
-/// Builds a trial from a table: every column except time becomes a channel. A header cell
-/// `name[unit]` (or `name (unit)`) sets the channel's unit. Every cell must be a finite number;
-/// time must increase uniformly within the tolerance.
-Trial trial_from_csv(const CsvTable& table, const TrialCsvOptions& options = {});
-/// read_csv + trial_from_csv.
+/// Parses a trial from CSV text: a header row, then every column except time becomes a channel. A
+/// header cell `name[unit]` (or `name (unit)`) sets the channel's unit. Every cell must be a finite
+/// number; time must increase uniformly within the tolerance. Errors name source:line:column.
+/// Cells are converted while the text is streamed once (no per-cell strings).
+Trial parse_trial_csv(const std::string& text, const std::string& source,
+                      const TrialCsvOptions& options = {});
+/// Reads a file and parses it with parse_trial_csv; a missing file is an InputError naming it.
 Trial read_trial_csv(const std::string& path, const TrialCsvOptions& options = {});
 
 /// CSV text of a trial: a `t` column in s then one column per channel, full double precision.

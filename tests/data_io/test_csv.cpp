@@ -9,11 +9,11 @@
 namespace d = stiffid::data;
 
 namespace {
-// Expects parse + trial_from_csv to throw InputError whose message contains every fragment.
+// Expects parse_trial_csv to throw InputError whose message contains every fragment.
 void expect_error(const std::string& text, const std::vector<std::string>& fragments,
                   const d::TrialCsvOptions& options = {}) {
   try {
-    d::trial_from_csv(d::parse_csv(text, "trial.csv"), options);
+    d::parse_trial_csv(text, "trial.csv", options);
     BOOST_ERROR("no error for:\n" << text);
   } catch (const stiffid::InputError& e) {
     for (const auto& f : fragments) {
@@ -25,8 +25,7 @@ void expect_error(const std::string& text, const std::vector<std::string>& fragm
 }  // namespace
 
 BOOST_AUTO_TEST_CASE(reads_channels_units_and_rate_from_time_column) {
-  const auto trial = d::trial_from_csv(
-      d::parse_csv("t,fx[N],x (m)\n0.0,1,2\n0.02,3,4\n0.04,5,6\n", "a.csv"));
+  const auto trial = d::parse_trial_csv("t,fx[N],x (m)\n0.0,1,2\n0.02,3,4\n0.04,5,6\n", "a.csv");
   BOOST_CHECK_CLOSE(trial.sample_rate_hz, 50.0, 1e-9);
   BOOST_REQUIRE_EQUAL(trial.channel_count(), 2);
   BOOST_CHECK_EQUAL(trial.names[0], "fx");
@@ -35,10 +34,18 @@ BOOST_AUTO_TEST_CASE(reads_channels_units_and_rate_from_time_column) {
   BOOST_CHECK_EQUAL(trial.samples(2, trial.index("x")), 6.0);
 }
 
+BOOST_AUTO_TEST_CASE(accepts_quoted_cells_crlf_and_comment_lines) {
+  const auto trial = d::parse_trial_csv("# made by hand\r\nt,\"fx\"\r\n0,\"1.5\"\r\n\r\n0.5,2\r\n", "q.csv");
+  BOOST_CHECK_CLOSE(trial.sample_rate_hz, 2.0, 1e-12);
+  BOOST_CHECK_EQUAL(trial.samples(0, trial.index("fx")), 1.5);
+  BOOST_CHECK_EQUAL(trial.samples(1, 0), 2.0);
+  expect_error("t,x\n0,\"1,2\"\n", {"trial.csv:2:2", "'1,2'"});
+}
+
 BOOST_AUTO_TEST_CASE(uses_given_rate_without_time_column) {
   d::TrialCsvOptions options;
   options.sample_rate_hz = 1000.0;
-  const auto trial = d::trial_from_csv(d::parse_csv("a,b\n1,2\n3,4\n", "b.csv"), options);
+  const auto trial = d::parse_trial_csv("a,b\n1,2\n3,4\n", "b.csv", options);
   BOOST_CHECK_EQUAL(trial.sample_rate_hz, 1000.0);
   expect_error("a,b\n1,2\n3,4\n", {"no time column", "--fs"});
 }
@@ -60,12 +67,12 @@ BOOST_AUTO_TEST_CASE(time_must_increase_uniformly) {
   expect_error("t,x\n0,1\n0.1,2\n0.1,3\n", {"trial.csv:4:1", "increase"});
   expect_error("t,x\n0,1\n0.1,2\n0.25,3\n0.3,4\n", {"trial.csv:4:1", "non-uniform"});
   // Jitter of 1e-4 step is within the default tolerance of 1e-3 step.
-  const auto trial = d::trial_from_csv(d::parse_csv("t,x\n0,1\n0.10001,2\n0.2,3\n", "ok.csv"));
+  const auto trial = d::parse_trial_csv("t,x\n0,1\n0.10001,2\n0.2,3\n", "ok.csv");
   BOOST_CHECK_CLOSE(trial.sample_rate_hz, 10.0, 1e-9);
 }
 
 BOOST_AUTO_TEST_CASE(missing_channel_and_file_are_named) {
-  const auto trial = d::trial_from_csv(d::parse_csv("t,x\n0,1\n0.1,2\n", "c.csv"));
+  const auto trial = d::parse_trial_csv("t,x\n0,1\n0.1,2\n", "c.csv");
   BOOST_CHECK_EXCEPTION(trial.index("fy"), stiffid::InputError, [](const auto& e) {
     return std::string(e.what()).find("c.csv: no channel 'fy'") != std::string::npos;
   });
