@@ -1,0 +1,76 @@
+#!/bin/sh
+# End-to-end MIMO benchmark (issue 3): `stiffid frf --nfft 4096` + `stiffid irf --lags -0.1:0.5` on
+# a 10-minute, 1 kHz, 2x2 endpoint trial, against the Python peers (bench/peer_frf.py:
+# scipy.signal.csd + numpy solve; bench/peer_irf.py: numpy FFT correlations + scipy.linalg.solve)
+# doing the same work with the same settings, each side as two processes that read the CSV.
+#
+#   bench/bench_mimo.sh [BUILD_DIR] [WORK_DIR] [RUNS]
+#
+# BUILD_DIR holds the stiffid program (default: build); WORK_DIR receives the trial (made once by
+# bench/make_bench_trial.py, ~40 MB, not committed) and the JSON outputs (default:
+# ${TMPDIR:-/tmp}/stiffid-bench). Runs alternate stiffid / peer RUNS times (default 5) after one
+# warm-up each, timed with /usr/bin/time; prints each run, the medians and the ratio, then checks
+# that both sides computed the same IRFs and FRFs.
+set -eu
+here=$(cd "$(dirname "$0")" && pwd)
+build=${1:-build}
+work=${2:-${TMPDIR:-/tmp}/stiffid-bench}
+runs=${3:-5}
+python=/usr/bin/python3
+stiffid=$(cd "$build" && pwd)/stiffid
+trial=$work/mimo_bench.csv
+mkdir -p "$work"
+[ -x "$stiffid" ] || { echo "bench_mimo: no stiffid program in $build" >&2; exit 2; }
+[ -f "$trial" ] || "$python" "$here/make_bench_trial.py" "$trial"
+
+io="--inputs fx,fy --outputs x,y"
+stiffid_cmd="\"$stiffid\" frf \"$trial\" $io --nfft 4096 -o \"$work/frf.json\" && \
+\"$stiffid\" irf \"$trial\" $io --lags=-0.1:0.5 -o \"$work/irf.json\""
+peer_cmd="\"$python\" \"$here/peer_frf.py\" \"$trial\" $io --nfft 4096 -o \"$work/peer_frf.json\" && \
+\"$python\" \"$here/peer_irf.py\" \"$trial\" $io --lags=-0.1:0.5 -o \"$work/peer_irf.json\""
+
+seconds() {  # wall-clock seconds of one run of a shell command
+  /usr/bin/time -f %e -o "$work/time.txt" sh -c "$1" >/dev/null
+  cat "$work/time.txt"
+}
+median() { sort -g | awk '{v[NR] = $1} END {print (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2}'; }
+
+seconds "$stiffid_cmd" >/dev/null  # warm-up: page cache, dynamic loading
+seconds "$peer_cmd" >/dev/null
+: >"$work/stiffid_s.txt"
+: >"$work/peer_s.txt"
+i=1
+while [ "$i" -le "$runs" ]; do
+  a=$(seconds "$stiffid_cmd")
+  b=$(seconds "$peer_cmd")
+  echo "$a" >>"$work/stiffid_s.txt"
+  echo "$b" >>"$work/peer_s.txt"
+  echo "run $i: stiffid $a s, peer $b s"
+  i=$((i + 1))
+done
+ms=$(median <"$work/stiffid_s.txt")
+mp=$(median <"$work/peer_s.txt")
+echo "median wall time: stiffid $ms s, peer $mp s, peer/stiffid $(echo "$mp $ms" | awk '{printf "%.1f", $1 / $2}')x"
+
+"$python" - "$work" <<'PY'
+import json, sys
+import numpy as np
+w = sys.argv[1]
+def worst(a, b, keys):
+    err = 0.0
+    for path in keys:
+        x, y = a, b
+        for k in path:
+            x, y = x[k], y[k]
+        x, y = np.asarray(x), np.asarray(y)
+        err = max(err, float(np.max(np.abs(x - y)) / np.max(np.abs(y))))
+    return err
+irf, peer = json.load(open(w + "/irf.json")), json.load(open(w + "/peer_irf.json"))
+keys = [("irf", o, i) for o in irf["outputs"] for i in irf["inputs"]]
+print("IRF: max relative difference stiffid vs peer %.1e; VAF %s vs %s; R^2 %.4f vs %.4f" % (
+    worst(irf, peer, keys), {k: round(v, 4) for k, v in irf["vaf_percent"].items()},
+    {k: round(v, 4) for k, v in peer["vaf_percent"].items()}, irf["r2_percent"], peer["r2_percent"]))
+frf, pfrf = json.load(open(w + "/frf.json")), json.load(open(w + "/peer_frf.json"))
+keys = [("frf", o, i, part) for o in frf["outputs"] for i in frf["inputs"] for part in ("re", "im")]
+print("FRF: max relative difference stiffid vs peer %.1e" % worst(frf, pfrf, keys))
+PY
