@@ -63,7 +63,8 @@ int seconds_to_samples(double seconds, double sample_rate_hz, const std::string&
   return static_cast<int>(rounded);
 }
 
-std::pair<int, int> parse_lags(const std::string& spec, double sample_rate_hz) {
+// The lag range A:B of --lags in s, checked for syntax and order.
+std::pair<double, double> parse_lag_range_s(const std::string& spec) {
   const auto colon = spec.find(':');
   if (colon == std::string::npos || spec.find(':', colon + 1) != std::string::npos) {
     throw InputError("--lags: '" + spec + "': expected A:B in seconds (e.g. -0.1:1.0)");
@@ -73,6 +74,12 @@ std::pair<int, int> parse_lags(const std::string& spec, double sample_rate_hz) {
   if (first_s > last_s) {
     throw InputError("--lags: '" + spec + "': the first lag must not exceed the last");
   }
+  return {first_s, last_s};
+}
+
+// The lag range of --lags in samples at the trial's rate.
+std::pair<int, int> lags_in_samples(const std::string& spec, double sample_rate_hz) {
+  const auto [first_s, last_s] = parse_lag_range_s(spec);
   return {seconds_to_samples(first_s, sample_rate_hz, spec),
           seconds_to_samples(last_s, sample_rate_hz, spec)};
 }
@@ -149,11 +156,11 @@ void run(const IrfCommandOptions& cli, CLI::Option* pinv_flag) {
   if (cli.sample_rate_hz < 0.0 || !std::isfinite(cli.sample_rate_hz)) {
     throw InputError("--fs: expected a positive sampling rate in Hz");
   }
-  parse_lags(cli.lags, 1.0);  // syntax errors before reading the file
+  parse_lag_range_s(cli.lags);  // syntax errors before reading the file
   data::TrialCsvOptions csv;
   csv.sample_rate_hz = cli.sample_rate_hz;
   const data::Trial trial = data::read_trial_csv(cli.trial_path, csv);
-  std::tie(options.first_lag, options.last_lag) = parse_lags(cli.lags, trial.sample_rate_hz);
+  std::tie(options.first_lag, options.last_lag) = lags_in_samples(cli.lags, trial.sample_rate_hz);
   data::require_samples(trial, options.last_lag - options.first_lag + 2,
                         "the " + std::to_string(options.last_lag - options.first_lag + 1) +
                             " IRF lags of --lags " + cli.lags);
