@@ -10,7 +10,7 @@
 
 #include "data/error.hpp"
 #include "fitting/pchip.hpp"
-#include "fitting/savitzky_golay.hpp"
+#include "estimators/savitzky_golay.hpp"
 
 namespace stiffid::fitting {
 namespace {
@@ -210,9 +210,11 @@ RegressionResult regress(const std::vector<data::Trial>& trials, const data::Tri
       const Eigen::MatrixXd df = window.middleCols(4, 2) - base.middleCols(4, 2);
       if (full) {
         const int sg = savgol_samples(o, rate, static_cast<int>(dx.rows()));
-        const SavitzkyGolayResult d = savitzky_golay(dx, sg, o.savgol_order, 1.0 / rate);
+        // sg is odd, so (sg - 1) / rate seconds round back to exactly sg samples.
+        const estimators::SavitzkyGolayResult d =
+            estimators::savitzky_golay(dx, rate, {(sg - 1) / rate, o.savgol_order});
         Eigen::MatrixXd phi(dx.rows(), 6);
-        phi << d.second, d.first, dx;
+        phi << d.second_derivative, d.first_derivative, dx;
         phis.push_back(phi);
       } else {
         phis.push_back(dx);
