@@ -20,7 +20,7 @@ demo: build
 	bash scripts/demo.sh $(BUILD)/stiffid
 
 bench: build
-	bash bench/run.sh $(BUILD)
+	sh bench/bench_mimo.sh $(BUILD)
 
 clean:
 	rm -rf $(BUILD)
