@@ -3,6 +3,9 @@
 # a 10-minute, 1 kHz, 2x2 endpoint trial, against the Python peers (bench/peer_frf.py:
 # scipy.signal.csd + numpy solve; bench/peer_irf.py: numpy FFT correlations + scipy.linalg.solve)
 # doing the same work with the same settings, each side as two processes that read the CSV.
+# At 1 kHz with inputs band-limited to 9 Hz, Psi of eq 11 (1202 x 1202) has a reciprocal condition
+# near 5e-13: stiffid rejects the plain solve as singular, so its side runs the Westwick & Kearney
+# pseudo-inverse (--pinv mdl), which does more work than the peer's plain solve.
 #
 #   bench/bench_mimo.sh [BUILD_DIR] [WORK_DIR] [RUNS]
 #
@@ -25,7 +28,7 @@ mkdir -p "$work"
 
 io="--inputs fx,fy --outputs x,y"
 stiffid_cmd="\"$stiffid\" frf \"$trial\" $io --nfft 4096 -o \"$work/frf.json\" && \
-\"$stiffid\" irf \"$trial\" $io --lags=-0.1:0.5 -o \"$work/irf.json\""
+\"$stiffid\" irf \"$trial\" $io --lags=-0.1:0.5 --pinv mdl -o \"$work/irf.json\""
 peer_cmd="\"$python\" \"$here/peer_frf.py\" \"$trial\" $io --nfft 4096 -o \"$work/peer_frf.json\" && \
 \"$python\" \"$here/peer_irf.py\" \"$trial\" $io --lags=-0.1:0.5 -o \"$work/peer_irf.json\""
 
