@@ -29,10 +29,10 @@
 
 #include <cmath>
 #include <nlohmann/json.hpp>
-#include <set>
 #include <string>
 #include <vector>
 
+#include "apps/channels.hpp"
 #include "apps/commands.hpp"
 #include "data/csv.hpp"
 #include "data/error.hpp"
@@ -63,18 +63,6 @@ void check_names(const data::Trial& trial, const std::vector<std::string>& names
     for (const auto& c : trial.names) columns += " " + c;
     throw InputError(trial.source + ":1: " + flag + ": no column '" + name +
                      "' in the header (columns:" + columns + ")");
-  }
-}
-
-void check_distinct(const std::vector<std::string>& inputs,
-                    const std::vector<std::string>& outputs) {
-  std::set<std::string> seen;
-  for (const auto* list : {&inputs, &outputs}) {
-    for (const auto& name : *list) {
-      if (!seen.insert(name).second) {
-        throw InputError("--inputs/--outputs: channel '" + name + "' is listed more than once");
-      }
-    }
   }
 }
 

@@ -14,10 +14,10 @@
 #include <charconv>
 #include <cmath>
 #include <nlohmann/json.hpp>
-#include <set>
 #include <string>
 #include <vector>
 
+#include "apps/channels.hpp"
 #include "apps/commands.hpp"
 #include "data/csv.hpp"
 #include "data/error.hpp"
@@ -97,18 +97,6 @@ void parse_pinv(const std::string& text, CLI::Option* flag, estimators::IrfOptio
   }
   options.inverse = estimators::IrfInverse::rank;
   options.rank = rank;
-}
-
-void check_distinct(const std::vector<std::string>& inputs,
-                    const std::vector<std::string>& outputs) {
-  std::set<std::string> seen;
-  for (const auto* list : {&inputs, &outputs}) {
-    for (const auto& name : *list) {
-      if (!seen.insert(name).second) {
-        throw InputError("--inputs/--outputs: channel '" + name + "' is listed more than once");
-      }
-    }
-  }
 }
 
 const char* inverse_name(estimators::IrfInverse inverse) {
