@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "data/error.hpp"
 #include "models/butterworth.hpp"
@@ -46,15 +47,19 @@ Eigen::Vector2d DisplacementRamp::offset_rate_m_per_s(double t_s) const {
 
 Eigen::MatrixXd random_forces(const RandomForce& options, int samples, int inputs,
                               double sample_rate_hz, std::mt19937_64& rng) {
+  const int r = options.oversample;
+  if (r < 1) throw InputError("random force: expected oversample >= 1, got " + std::to_string(r));
   const Eigen::MatrixXd sos =
-      butterworth_lowpass_sos(options.filter_order, options.bandwidth_hz, sample_rate_hz);
-  const int warmup = static_cast<int>(std::lround(options.warmup_s * sample_rate_hz));
+      butterworth_lowpass_sos(options.filter_order, options.bandwidth_hz, r * sample_rate_hz);
+  const Eigen::Index fine = static_cast<Eigen::Index>(samples) * r;
+  const Eigen::Index warmup = std::lround(options.warmup_s * sample_rate_hz) * r;
   std::normal_distribution<double> normal(0.0, 1.0);
   Eigen::MatrixXd e(samples, inputs);
   for (int i = 0; i < inputs; ++i) {
-    Eigen::VectorXd white(samples + warmup);
+    Eigen::VectorXd white(fine + warmup);
     for (Eigen::Index k = 0; k < white.size(); ++k) white(k) = normal(rng);
-    e.col(i) = sos_filter(sos, white).tail(samples);
+    const Eigen::VectorXd filtered = sos_filter(sos, white);
+    for (int k = 0; k < samples; ++k) e(k, i) = filtered(warmup + static_cast<Eigen::Index>(k) * r);
   }
   // Standardize each input over the trial.
   auto standardize = [](Eigen::VectorXd v) {

@@ -58,9 +58,16 @@ struct DisplacementRamp {
 enum class InputHold { zero_order, first_order };
 
 /// Band-limited random forces (Perreault Fig 2): independent standard Gaussian white noise per
-/// input, sampled at the trial's sample rate, filtered by a causal digital Butterworth low-pass of
-/// `filter_order` with cut-off `bandwidth_hz` (bilinear transform, as scipy.signal.butter +
-/// lfilter), after `warmup_s` of discarded filter transient. Coupling (Fig 7): input 2 is
+/// input at `oversample` x the trial's sample rate, filtered by a causal digital Butterworth
+/// low-pass of `filter_order` with cut-off `bandwidth_hz` designed at that rate (bilinear
+/// transform, as scipy.signal.butter + lfilter), after `warmup_s` of discarded filter transient,
+/// then read every `oversample`-th sample. With oversample = 1 this is the digital filter at the
+/// trial rate (the shared reference case); its bilinear zero at the Nyquist frequency leaves the
+/// band above the cut-off almost empty (4th order, 9 Hz at 50 Hz: 1e-12 of the in-band power), so
+/// a time-domain IRF solve (Perreault eq 11) is ill-conditioned (cond(Psi) ~ 1e12). oversample >= 4
+/// approximates an analog filter sampled by the acquisition without anti-aliasing, as in
+/// Perreault's continuous-time Simulink simulations: the power near Nyquist is that of the analog
+/// roll-off plus its aliases (cond(Psi) ~ 5e3). Coupling (Fig 7): input 2 is
 ///   f2 = sqrt(c) * e1 + sqrt(1 - c) * e2',
 /// with e1, e2' the filtered noises standardized over the trial and e2' made exactly uncorrelated
 /// with e1 (sample Gram-Schmidt), so the squared sample correlation of f1 and f2 is exactly c:
@@ -72,6 +79,7 @@ enum class InputHold { zero_order, first_order };
 struct RandomForce {
   double bandwidth_hz = 9.0;        ///< low-pass cut-off (-3 dB), Hz (Perreault: about 9 Hz)
   int filter_order = 4;             ///< Butterworth order
+  int oversample = 1;               ///< filter rate / trial sample rate (1..64), see above
   double coupling_percent = 0.0;    ///< % of the variance of input 2 linearly related to input 1
   double peak_to_peak_n = 1.0;      ///< N, per input (ignored when rms_n > 0)
   double rms_n = 0.0;               ///< N, per input; 0 -> use peak_to_peak_n

@@ -7,6 +7,9 @@ namespace stiffid::models {
 
 namespace {
 constexpr double kDeg = M_PI / 180.0;
+// Perreault simulated in continuous time (Simulink) and sampled at 50 Hz: the 9 Hz forces are an
+// analog filter's output, approximated by filtering at 10 x 50 Hz (see RandomForce::oversample).
+constexpr int kPerreaultOversample = 10;
 }
 
 Eigen::Vector2d perreault_posture_rad(int position) {
@@ -36,6 +39,7 @@ TrialSpec perreault_arm_trial(int position) {
   spec.task.posture_joint_rad = perreault_posture_rad(position);
   spec.joint = perreault_joint_viscoelasticity();
   spec.perturbations.random = true;
+  spec.perturbations.random_force.oversample = kPerreaultOversample;
   return spec;
 }
 
@@ -46,6 +50,7 @@ TrialSpec perreault_endpoint_trial(double coupling_percent, double snr_db) {
   spec.sample_rate_hz = 50.0;
   spec.endpoint = reference_endpoint_model();
   spec.perturbations.random = true;
+  spec.perturbations.random_force.oversample = kPerreaultOversample;
   spec.perturbations.random_force.coupling_percent = coupling_percent;
   spec.noise.snr_db = snr_db;
   return spec;

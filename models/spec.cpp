@@ -323,6 +323,7 @@ void parse_perturbation(const json& value, const std::string& path, const std::s
     RandomForce& f = spec.perturbations.random_force;
     o.number("bandwidth", {{"hz", 1.0}}, f.bandwidth_hz);
     if (auto order = o.integer("filter_order", 1, 20)) f.filter_order = static_cast<int>(*order);
+    if (auto factor = o.integer("oversample", 1, 64)) f.oversample = static_cast<int>(*factor);
     o.number("coupling", {{"percent", 1.0}}, f.coupling_percent);
     o.number("peak_to_peak", {{"n", 1.0}}, f.peak_to_peak_n);
     o.number("rms", {{"n", 1.0}}, f.rms_n);
@@ -640,6 +641,7 @@ json trial_spec_to_json(const TrialSpec& spec) {
     perturbations.push_back({{"kind", "random_force"},
                              {"bandwidth_hz", f.bandwidth_hz},
                              {"filter_order", f.filter_order},
+                             {"oversample", f.oversample},
                              {"coupling_percent", f.coupling_percent},
                              {"peak_to_peak_n", f.peak_to_peak_n},
                              {"rms_n", f.rms_n},

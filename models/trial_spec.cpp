@@ -164,6 +164,9 @@ void TrialSpec::validate() const {
     if (f.filter_order < 1 || f.filter_order > 20) {
       throw InputError(where(source, key + "filter_order") + ": expected an order in [1, 20]");
     }
+    if (f.oversample < 1 || f.oversample > 64) {
+      throw InputError(where(source, key + "oversample") + ": expected a factor in [1, 64]");
+    }
     if (!(f.coupling_percent >= 0.0 && f.coupling_percent <= 100.0)) {
       throw InputError(where(source, key + "coupling_percent") + ": expected a value in [0, 100]");
     }
