@@ -1,7 +1,7 @@
 // `stiffid irf`: two-sided MIMO impulse responses of a trial (estimators/irf.hpp).
 //
-//   stiffid irf TRIAL.csv --inputs fx,fy --outputs x,y --lags -0.1:1.0 [--pinv [RANK|mdl]]
-//               [--fs HZ] [-o OUT.json]
+//   stiffid irf TRIAL.csv --inputs fx,fy --outputs x,y --lags -0.1:1.0 [--pinv [RANK|mdl|tsvd]]
+//               [--least-squares] [--fs HZ] [-o OUT.json]
 //
 // --lags A:B is in seconds; each end must be a whole number of samples at the trial's rate (within
 // 1e-3 of a sample, the CSV reader's tolerance on time stamps), and A <= B. --pinv alone means
@@ -38,6 +38,7 @@ struct IrfCommandOptions {
   std::string pinv;
   double sample_rate_hz = 0.0;
   std::string output_path;
+  bool least_squares = false;
 };
 
 double parse_seconds(const std::string& text, const std::string& spec) {
@@ -90,10 +91,14 @@ void parse_pinv(const std::string& text, CLI::Option* flag, estimators::IrfOptio
     options.inverse = estimators::IrfInverse::mdl;
     return;
   }
+  if (text == "tsvd") {
+    options.inverse = estimators::IrfInverse::tsvd;
+    return;
+  }
   int rank = 0;
   const auto [ptr, error] = std::from_chars(text.data(), text.data() + text.size(), rank);
   if (error != std::errc() || ptr != text.data() + text.size() || rank < 1) {
-    throw InputError("--pinv: '" + text + "': expected a positive rank or 'mdl'");
+    throw InputError("--pinv: '" + text + "': expected a positive rank, 'mdl' or 'tsvd'");
   }
   options.inverse = estimators::IrfInverse::rank;
   options.rank = rank;
@@ -105,6 +110,8 @@ const char* inverse_name(estimators::IrfInverse inverse) {
       return "rank";
     case estimators::IrfInverse::mdl:
       return "mdl";
+    case estimators::IrfInverse::tsvd:
+      return "tsvd";
     case estimators::IrfInverse::full:
       break;
   }
@@ -112,7 +119,10 @@ const char* inverse_name(estimators::IrfInverse inverse) {
 }
 
 nlohmann::json to_json(const estimators::IrfResult& result, const std::vector<std::string>& inputs,
-                       const std::vector<std::string>& outputs, estimators::IrfInverse inverse) {
+                       const std::vector<std::string>& outputs,
+                       const estimators::IrfOptions& options) {
+  const estimators::IrfInverse inverse = options.inverse;
+  const bool least_squares = options.least_squares;
   auto vector = [](const Eigen::VectorXd& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
   nlohmann::json out;
   out["fs"] = result.sample_rate_hz;
@@ -128,6 +138,7 @@ nlohmann::json to_json(const estimators::IrfResult& result, const std::vector<st
   out["r2_percent"] = result.r2_percent;
   out["r2_correlation_percent"] = result.r2_correlation_percent;
   out["inverse"] = inverse_name(inverse);
+  out["least_squares"] = least_squares;
   out["rank"] = result.rank;
   out["full_rank"] = result.full_rank;
   out["condition_number"] = result.condition_number;  // inf -> null
@@ -138,6 +149,7 @@ nlohmann::json to_json(const estimators::IrfResult& result, const std::vector<st
 void run(const IrfCommandOptions& cli, CLI::Option* pinv_flag) {
   estimators::IrfOptions options;
   parse_pinv(cli.pinv, pinv_flag, options);
+  options.least_squares = cli.least_squares;
   const auto inputs = data::split_list(cli.inputs, "--inputs");
   const auto outputs = data::split_list(cli.outputs, "--outputs");
   check_distinct(inputs, outputs);
@@ -156,7 +168,7 @@ void run(const IrfCommandOptions& cli, CLI::Option* pinv_flag) {
   const estimators::IrfResult result = estimators::estimate_irf(
       trial.columns(inputs), trial.columns(outputs), trial.sample_rate_hz, options);
   if (!result.status.ok) throw NumericalFailure(result.status.message);
-  data::write_json(cli.output_path, to_json(result, inputs, outputs, options.inverse));
+  data::write_json(cli.output_path, to_json(result, inputs, outputs, options));
 }
 
 }  // namespace
@@ -176,8 +188,11 @@ void add_irf_command(CLI::App& app) {
   CLI::Option* pinv = sub->add_option(
       "--pinv", cli->pinv,
       "robust pseudo-inverse (Westwick & Kearney 1997): keep RANK eigenvectors, or choose them "
-      "by MDL (default when no value is given)");
+      "by MDL (default when no value is given), or 'tsvd': MDL over eigenvectors in eigenvalue order");
   pinv->expected(0, 1);
+  sub->add_flag("--least-squares", cli->least_squares,
+                "exact least squares: Psi = Z^T Z of the zero-padded lagged inputs instead of the "
+                "biased-correlation Toeplitz matrix of eq 11 (no edge error; see estimators/irf.hpp)");
   sub->add_option("--fs", cli->sample_rate_hz, "sampling rate in Hz (required without a t column)");
   sub->add_option("-o,--output", cli->output_path, "output JSON file (default: stdout)");
   sub->callback([cli, pinv]() { run(*cli, pinv); });

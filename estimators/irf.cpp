@@ -76,6 +76,51 @@ Eigen::MatrixXd assemble_psi(const Eigen::MatrixXd& phi_inputs, int inputs, int 
   return psi;
 }
 
+// Psi of the exact least-squares problem (IrfOptions::least_squares): Z^T Z / S for the lagged
+// matrix Z of the zero-padded, mean-removed inputs c (S x N), i.e. the Toeplitz Psi minus the
+// products that fall outside the record. Block (i, k) at lags (tau, s):
+//   Z^T Z / S = phi_ik(tau - s) - (1/S) [ sum_{u=S-tau}^{S-1} c_i(u) c_k(u + tau - s)   (tau > 0)
+//                                       + sum_{u=0}^{-tau-1} c_i(u) c_k(u + tau - s) ]  (tau < 0)
+// Each sum grows by one product per step along a diagonal (tau - s fixed) away from tau = 0:
+//   end(tau, s) = end(tau - 1, s - 1) + c_i(S - tau) c_k(S - s),
+//   start(tau, s) = start(tau + 1, s + 1) + c_i(-tau - 1) c_k(-s - 1),
+// with c zero outside [0, S); O(L (|A| + B)) per block.
+void remove_edge_products(Eigen::MatrixXd& psi, const Eigen::MatrixXd& centred, int first_lag,
+                          int lags) {
+  const Eigen::Index samples = centred.rows();
+  const int inputs = static_cast<int>(centred.cols());
+  const int last_lag = first_lag + lags - 1;
+  auto value = [&](int channel, Eigen::Index t) {
+    return t >= 0 && t < samples ? centred(t, channel) : 0.0;
+  };
+  for (int i = 0; i < inputs; ++i) {
+    for (int k = 0; k < inputs; ++k) {
+      for (int d = -(lags - 1); d <= lags - 1; ++d) {  // d = tau - s
+        double sum = 0.0;
+        for (int tau = 1; tau <= last_lag; ++tau) {
+          const int s = tau - d;
+          sum += value(i, samples - tau) * value(k, samples - s);
+          if (tau >= first_lag && s >= first_lag && s <= last_lag) {
+            psi(static_cast<Eigen::Index>(i) * lags + (tau - first_lag),
+                static_cast<Eigen::Index>(k) * lags + (s - first_lag)) -=
+                sum / static_cast<double>(samples);
+          }
+        }
+        sum = 0.0;
+        for (int tau = -1; tau >= first_lag; --tau) {
+          const int s = tau - d;
+          sum += value(i, -tau - 1) * value(k, -s - 1);
+          if (tau <= last_lag && s >= first_lag && s <= last_lag) {
+            psi(static_cast<Eigen::Index>(i) * lags + (tau - first_lag),
+                static_cast<Eigen::Index>(k) * lags + (s - first_lag)) -=
+                sum / static_cast<double>(samples);
+          }
+        }
+      }
+    }
+  }
+}
+
 struct Solution {
   Status status;
   Eigen::MatrixXd coefficients;  // H = dt h, (N*L x M)
@@ -135,9 +180,12 @@ Solution solve_pseudo_inverse(const Eigen::MatrixXd& psi, const Eigen::MatrixXd&
     return s;
   }
   const Eigen::VectorXd total = contribution.rowwise().sum();
-  // Decreasing contribution; ties broken by the larger eigenvalue, so the order is deterministic.
+  // Decreasing contribution (ties broken by the larger eigenvalue, so the order is deterministic),
+  // or decreasing eigenvalue for the truncated eigen-decomposition.
+  const bool by_eigenvalue = options.inverse == IrfInverse::tsvd;
   std::stable_sort(usable.begin(), usable.end(), [&](int a, int b) {
-    return total(a) != total(b) ? total(a) > total(b) : w(a) > w(b);
+    if (by_eigenvalue || total(a) == total(b)) return w(a) > w(b);
+    return total(a) > total(b);
   });
   const int count = static_cast<int>(usable.size());
 
@@ -233,7 +281,10 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
   }
   const Eigen::MatrixXd phi_all = spectra.correlate(pairs);
 
-  const Eigen::MatrixXd psi = assemble_psi(phi_all.leftCols(input_pairs), n_in, lags, max_lag);
+  Eigen::MatrixXd psi = assemble_psi(phi_all.leftCols(input_pairs), n_in, lags, max_lag);
+  if (options.least_squares) {
+    remove_edge_products(psi, inputs.rowwise() - spectra.means().head(n_in), first, lags);
+  }
   Eigen::MatrixXd phi_xy(static_cast<Eigen::Index>(n_in) * lags, n_out);
   for (int j = 0; j < n_out; ++j) {
     for (int i = 0; i < n_in; ++i) {
