@@ -121,6 +121,8 @@ CellOutcome mimo_identification_evaluator(const nlohmann::json& spec, std::uint6
   SpecKeys keys(spec, "evaluator 'mimo_identification'");
   const std::string model = keys.choice("model", "endpoint", {"endpoint", "arm"});
   const int position = static_cast<int>(keys.integer("position", 1, 1, 4));
+  const int endpoint_position = static_cast<int>(keys.integer("endpoint_position", 0, 0, 4));
+  const int filter_order = static_cast<int>(keys.integer("filter_order", 4, 1, 20));
   const double coupling = keys.number("coupling_percent", 0.0, 0.0, 99.0);
   const double snr_db = keys.has("snr_db") ? keys.number("snr_db", -60.0, 200.0)
                                            : std::numeric_limits<double>::infinity();
@@ -132,6 +134,8 @@ CellOutcome mimo_identification_evaluator(const nlohmann::json& spec, std::uint6
       keys.has("irf_lags_s") ? keys.numbers("irf_lags_s", 2) : std::vector<double>{-0.2, 1.5};
   const std::vector<double> band_hz =
       keys.has("band_hz") ? keys.numbers("band_hz", 2) : std::vector<double>{0.5, 8.0};
+  const std::string inverse = keys.choice("irf_inverse", "full", {"full", "mdl", "tsvd"});
+  const bool least_squares = keys.boolean("irf_least_squares", false);
   bool run_frf = true;
   bool run_irf = true;
   if (keys.has("estimators")) {
@@ -147,6 +151,17 @@ CellOutcome mimo_identification_evaluator(const nlohmann::json& spec, std::uint6
 
   models::TrialSpec trial = model == "arm" ? models::perreault_arm_trial(position)
                                            : models::perreault_endpoint_trial(coupling, snr_db);
+  if (model == "endpoint" && endpoint_position > 0) {
+    // The linear endpoint model (eq 15) with the arm's endpoint impedance at a Fig 6 posture
+    // (eq 16), as Perreault took all simulation parameters from the same joint values.
+    const models::TrialSpec arm = models::perreault_arm_trial(endpoint_position);
+    const EndpointImpedance z = arm_endpoint_impedance(arm.arm, arm.task.posture_joint_rad,
+                                                       arm.joint.damping, arm.joint.stiffness);
+    trial.endpoint.inertia_kg = z.inertia_kg;
+    trial.endpoint.element.damping = z.damping_ns_per_m;
+    trial.endpoint.element.stiffness = z.stiffness_n_per_m;
+  }
+  trial.perturbations.random_force.filter_order = filter_order;
   trial.perturbations.random_force.coupling_percent = coupling;
   trial.noise.snr_db = snr_db;
   trial.duration_s = duration_s;
@@ -176,6 +191,10 @@ CellOutcome mimo_identification_evaluator(const nlohmann::json& spec, std::uint6
     estimators::IrfOptions options;
     options.first_lag = static_cast<int>(std::lround(lags_s[0] * fs));
     options.last_lag = static_cast<int>(std::lround(lags_s[1] * fs));
+    options.inverse = inverse == "mdl"    ? estimators::IrfInverse::mdl
+                      : inverse == "tsvd" ? estimators::IrfInverse::tsvd
+                                          : estimators::IrfInverse::full;
+    options.least_squares = least_squares;
     const estimators::IrfResult irf = estimators::estimate_irf(inputs, outputs, fs, options);
     if (!irf.status.ok) return {Status::failure("IRF: " + irf.status.message), {}};
     const Eigen::MatrixXd h_true =
