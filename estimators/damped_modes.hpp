@@ -13,6 +13,7 @@
 // Kaufman's Jacobian); residuals are whitened by the pre-onset noise covariance.
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "data/error.hpp"
@@ -27,15 +28,18 @@ struct DampedModesOptions {
                                         ///< keep the input rate (no filter)
   double skip_s = 0.025;                ///< after the onset, not free (the pulse), s; the fit also
                                         ///< starts the filter half-length later
-  double noise_window_s = 0.2;          ///< before the onset, for the noise covariance, s
+  double noise_window_s = 1.0;          ///< before the onset, for the noise covariance, s (the
+                                        ///< tfa pipeline shortens it to what the trial holds)
   double knot_spacing_s = 0.1;          ///< knot spacing of omega_j(t), alpha_j(t), s
   double shape_knot_spacing_s = 0.5;    ///< knot spacing of the mode shapes a_jk(t), s; <= 0:
                                         ///< constant mode shapes
   double shape_weight = -1.0;           ///< lambda of the penalty on shape changes (whitened
                                         ///< units, dimensionless); < 0: chosen by GCV
   double track_roughness = -1.0;        ///< prior SD of second differences of the omega (rad/s)
-                                        ///< and alpha (1/s) spline coefficients; < 0: chosen by
-                                        ///< GCV from 0.003 .. 3 (continuation smooth -> rough)
+                                        ///< and alpha (1/s) spline coefficients; < 0: from the
+                                        ///< data over 0.003 .. 3 (continuation smooth -> rough),
+                                        ///< rougher only while the BIC rule accepts the extra
+                                        ///< effective parameters (docs/tfa_modal.md)
   double init_window_s = 0.5;           ///< sliding matrix-pencil windows for the start, s
   double anr_threshold_db = 0.0;        ///< validity: amplitude-to-noise ratio at least this, dB
   double max_frequency_sd_hz = 0.1;     ///< validity: posterior SD of f_j(t) at most this, Hz
@@ -63,8 +67,10 @@ struct ModeTrack {
 };
 
 struct DampedModesResult {
-  Status status;                    ///< failure: start not found, fit did not converge (then every
-                                    ///< valid flag is false)
+  Status status;                    ///< failure: start not found or the fit failed
+  bool converged = false;           ///< Levenberg-Marquardt converged in max_iterations; when not,
+                                    ///< the fit is returned with every valid flag false
+  std::string warning;              ///< why converged is false, else empty
   Eigen::VectorXd t_s;              ///< [T] fitted sample times, s (same clock as the input)
   std::vector<ModeTrack> modes;     ///< [n] in ascending mean frequency
   double rate_hz = 0.0;             ///< sample rate of the fitted data, Hz

@@ -1,6 +1,9 @@
 #include "estimators/tfa.hpp"
 
+#include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <cmath>
+#include <complex>
 #include <string>
 
 #include "data/error.hpp"
@@ -9,16 +12,121 @@
 namespace stiffid::estimators {
 
 TfaMethod parse_tfa_method(const std::string& text) {
+  if (text == "modal") return TfaMethod::modal;
   if (text == "spectrogram") return TfaMethod::spectrogram;
-  throw InputError("--method: unknown method '" + text + "'; expected spectrogram");
+  throw InputError("--method: unknown method '" + text + "'; expected modal or spectrogram");
 }
 
 std::string to_string(TfaMethod method) {
   switch (method) {
+    case TfaMethod::modal: return "modal";
     case TfaMethod::spectrogram: return "spectrogram";
   }
   return "";
 }
+
+namespace {
+
+// Inertia M(theta_0(t)) of the unperturbed posture at each time, kg m^2.
+std::vector<Eigen::MatrixXd> inertia_at(const DeviationResult& dev,
+                                        const models::ArmParameters& arm,
+                                        const Eigen::VectorXd& time_s) {
+  std::vector<Eigen::MatrixXd> inertia;
+  inertia.reserve(time_s.size());
+  const Eigen::Index last = dev.posture_rad.rows() - 1;
+  for (Eigen::Index m = 0; m < time_s.size(); ++m) {
+    const Eigen::Index row = std::clamp<Eigen::Index>(
+        std::lround((time_s(m) - dev.start_time_s) * dev.sample_rate_hz), 0, last);
+    const Eigen::Vector2d theta = dev.posture_rad.row(row).transpose();
+    inertia.push_back(models::inertia_matrix(arm, theta));
+  }
+  return inertia;
+}
+
+// Stages 2-5 of the modal method: the fit, K and C by the inverse eigenproblem, and the same
+// per-time quantities as the spectrogram pipeline's modal analysis (omega, alpha and their
+// derivatives come from the fitted splines, not from Savitzky-Golay smoothing).
+void identify_modal(TfaResult& r, const TfaOptions& options) {
+  const DeviationResult& dev = r.deviation;
+  const int n = static_cast<int>(dev.channels.size());
+  DampedModesOptions mo = options.modes;
+  mo.modes = n;
+  mo.skip_s = std::max(mo.skip_s, dev.free_start_s - dev.onset_s);
+  // The noise window reaches back as far as the record allows (less a margin for the filter).
+  const double available_s = dev.onset_s - dev.start_time_s - 0.05;
+  if (available_s >= 0.1) mo.noise_window_s = std::min(mo.noise_window_s, available_s);
+  r.modes = fit_damped_modes(dev.deviation_rad, dev.sample_rate_hz, dev.start_time_s, dev.onset_s,
+                             mo);
+  const DampedModesResult& fit = r.modes;
+  r.analysis_rate_hz = fit.rate_hz;
+  r.decimation = std::max(1, static_cast<int>(std::lround(dev.sample_rate_hz / fit.rate_hz)));
+  if (!fit.status.ok || fit.t_s.size() == 0) {
+    r.status = fit.status.ok ? Status::failure("modal fit: no sample fitted") : fit.status;
+    return;
+  }
+  r.region_begin_s = fit.t_s(0);
+  r.region_end_s = fit.t_s(fit.t_s.size() - 1);
+  r.ridges = as_ridges(fit);
+  const std::vector<Eigen::MatrixXd> inertia = inertia_at(dev, options.arm, fit.t_s);
+  r.parameters = modal_parameters(fit, inertia, options.modal_parameters);
+
+  const int frames = static_cast<int>(fit.t_s.size());
+  ModalAnalysisResult& m = r.modal;
+  m.time_s = fit.t_s;
+  m.omega_rad_per_s.resize(frames, n);
+  m.omega_dot_rad_per_s2.resize(frames, n);
+  m.amplitude.resize(frames, n);
+  m.alpha_per_s.resize(frames, n);
+  m.alpha_dot_per_s2.resize(frames, n);
+  m.phase_difference_rad.resize(frames, n);
+  m.time_lag_s.resize(frames, n);
+  m.gamma_per_s = r.parameters.gamma_per_s.transpose();
+  m.eta_squared_per_s2 = r.parameters.eta_squared_rad2_per_s2.transpose();
+  m.eigenvectors = r.parameters.eigenvectors;
+  m.stiffness_nm_per_rad = r.parameters.stiffness;
+  m.damping_nms_per_rad = r.parameters.damping;
+  m.mode_shape.assign(frames, Eigen::MatrixXd::Zero(n, n));
+  m.inertia_sqrt.reserve(frames);
+  for (int t = 0; t < frames; ++t) {
+    m.inertia_sqrt.push_back(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(inertia[t]).operatorSqrt());
+  }
+  for (int j = 0; j < n; ++j) {
+    const ModeTrack& track = fit.modes[j];
+    m.omega_rad_per_s.col(j) = track.omega_rad_per_s;
+    m.omega_dot_rad_per_s2.col(j) = track.omega_dot_rad_per_s2;
+    m.alpha_per_s.col(j) = track.alpha_per_s;
+    m.alpha_dot_per_s2.col(j) = track.alpha_dot_per_s2;
+    m.amplitude.col(j) = track.envelope.rowwise().norm();
+    for (int t = 0; t < frames; ++t) {
+      // Phases relative to the strongest channel (eqs 41-42); the mode shape is the in-phase
+      // projection (eq 37), unit norm.
+      Eigen::Index ref = 0;
+      track.shape.row(t).cwiseAbs().maxCoeff(&ref);
+      const std::complex<double> rotation = std::polar(1.0, -std::arg(track.shape(t, ref)));
+      Eigen::VectorXd shape(n);
+      double folded = 0.0;
+      for (int k = 0; k < n; ++k) {
+        const std::complex<double> a = track.shape(t, k) * rotation;
+        shape(k) = a.real();
+        if (k != ref) {
+          double rho = std::arg(a);
+          if (rho > M_PI / 2) rho -= M_PI;
+          if (rho <= -M_PI / 2) rho += M_PI;
+          folded = rho;
+        }
+      }
+      const double norm = shape.norm();
+      if (norm > 0.0) m.mode_shape[t].col(j) = shape / norm;
+      m.phase_difference_rad(t, j) = folded;
+      m.time_lag_s(t, j) = folded / track.omega_rad_per_s(t);
+    }
+  }
+  m.status = fit.status;
+  r.force = normalized_force(r.ridges, m);
+  r.status = fit.status;
+}
+
+}  // namespace
 
 TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
                        const data::Trial* baseline) {
@@ -28,6 +136,14 @@ TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
   }
   options.arm.validate();
   TfaResult r;
+  if (options.method == TfaMethod::modal) {
+    DeviationOptions deviation = options.deviation;
+    // The fit takes the noise covariance from before the onset (after its low-pass filter).
+    deviation.lead_s = std::max(deviation.lead_s, options.modes.noise_window_s + 0.1);
+    r.deviation = joint_deviation(trial, deviation, baseline);
+    identify_modal(r, options);
+    return r;
+  }
   r.deviation = joint_deviation(trial, options.deviation, baseline);
   const DeviationResult& dev = r.deviation;
   const double fs = dev.sample_rate_hz;

@@ -1,13 +1,17 @@
 #pragma once
 // Time-frequency identification of time-varying joint stiffness and damping from one perturbed
 // trial (Piovesan et al. 2012): deviations (stage 1), reassigned spectrogram (2), ridges (3),
-// Savitzky-Golay smoothing (4), modal analysis (5) and normalised force (6). Issue 7's parametric
-// method will replace stages 2-3 behind TfaOptions::method.
+// Savitzky-Golay smoothing (4), modal analysis (5) and normalised force (6); or, by default, the
+// parametric `modal` method (issue 7, docs/tfa_modal.md): damped modes with shared time-varying
+// frequency and decay fitted to the whole free response (damped_modes.hpp) in place of stages 2-4,
+// and the state-space inverse eigenproblem (modal_parameters.hpp) for stage 5.
 
 #include <string>
 
 #include "data/trial.hpp"
+#include "estimators/damped_modes.hpp"
 #include "estimators/modal_analysis.hpp"
+#include "estimators/modal_parameters.hpp"
 #include "estimators/normalized_force.hpp"
 #include "estimators/reassigned_spectrogram.hpp"
 #include "estimators/ridge.hpp"
@@ -16,15 +20,17 @@
 
 namespace stiffid::estimators {
 
-enum class TfaMethod { spectrogram };
+enum class TfaMethod { modal, spectrogram };
 
-/// "spectrogram" -> TfaMethod; throws InputError naming --method otherwise.
+/// "modal" or "spectrogram" -> TfaMethod; throws InputError naming --method otherwise.
 TfaMethod parse_tfa_method(const std::string& text);
 std::string to_string(TfaMethod method);
 
 struct TfaOptions {
-  TfaMethod method = TfaMethod::spectrogram;
+  TfaMethod method = TfaMethod::modal;
   DeviationOptions deviation;                 ///< stage 1
+  DampedModesOptions modes;                   ///< modal method: the fit (modes = angle channels)
+  ModalParametersOptions modal_parameters;    ///< modal method: K, C from the tracks
   int decimation = 0;  ///< keep every D-th sample before the STFT (zero-phase FIR); 0 = auto: the
                        ///< largest divisor of the hop (in samples) leaving >= 8 x the ridge band's
                        ///< top frequency as sample rate
@@ -40,9 +46,11 @@ struct TfaResult {
   double analysis_rate_hz = 0.0;      ///< rate of the analysed signal, Hz
   double region_begin_s = 0.0;        ///< first analysed instant (free response, filter settled), s
   double region_end_s = 0.0;          ///< last analysed instant, s
-  ReassignedSpectrogram spectrogram;  ///< stage 2
-  RidgeResult ridges;                 ///< stage 3
-  ModalAnalysisResult modal;          ///< stages 4-5: K_theta(t), C_theta(t), P(t)
+  ReassignedSpectrogram spectrogram;  ///< stage 2 (spectrogram method; empty for modal)
+  RidgeResult ridges;                 ///< stage 3 (modal method: the fitted tracks as ridges)
+  DampedModesResult modes;            ///< modal method: the fit, with anr_db and valid per mode
+  ModalParametersResult parameters;   ///< modal method: K, C and their validity per time
+  ModalAnalysisResult modal;          ///< stages 4-5: K_theta(t), C_theta(t), P(t) (both methods)
   NormalizedForceResult force;        ///< stage 6
   Status status;
 };

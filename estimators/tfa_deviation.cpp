@@ -67,9 +67,14 @@ DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions
     }
   }
   const int onset = static_cast<int>(std::ceil((r.onset_s - trial.start_time_s) / dt - 1e-9));
-  const int rows = trial.sample_count() - onset;
-  r.start_time_s = trial.start_time_s + onset * dt;
-  r.free_start_s = std::max(pulse_end_s, r.start_time_s);
+  int first_row = std::max(0, onset - static_cast<int>(std::lround(std::max(0.0, options.lead_s) / dt)));
+  if (baseline != nullptr) {  // the lead reaches back only as far as the baseline
+    const long covered = std::lround((baseline->start_time_s - trial.start_time_s) / dt);
+    first_row = std::min(onset, std::max<int>(first_row, static_cast<int>(covered)));
+  }
+  const int rows = trial.sample_count() - first_row;
+  r.start_time_s = trial.start_time_s + first_row * dt;
+  r.free_start_s = std::max(pulse_end_s, trial.start_time_s + onset * dt);
   if (baseline == nullptr) {
     const int pre = static_cast<int>(std::lround(options.pre_onset_s / dt));
     if (pre < 1 || onset - pre < 0) {

@@ -61,6 +61,7 @@ double percent_rms_error(const est::TfaResult& r, const std::string& kind, int r
 
 est::TfaOptions piovesan_options() {
   est::TfaOptions o;  // Kaiser beta 3, 0.75 s, 2.5 ms hop; SG order 3 over 0.25 s (the paper's)
+  o.method = est::TfaMethod::spectrogram;  // this file tests the spectrogram pipeline
   o.deviation.angle_channels = {"th1", "th2"};
   o.deviation.force_channels = {"fx", "fy"};  // onset auto
   return o;
