@@ -1,9 +1,11 @@
 // `stiffid tfa`: time-varying joint stiffness K(t) and damping C(t) of a two-link arm from one
-// trial with one force impulse, by the reassigned spectrogram and modal analysis of Piovesan et
-// al. 2012 (estimators/tfa.hpp; method, derivations and limits in docs/tfa.md).
+// trial with one force impulse: by default the parametric damped-mode fit (`--method modal`,
+// docs/tfa_modal.md), or the reassigned spectrogram and modal analysis of Piovesan et al. 2012
+// (`--method spectrogram`, docs/tfa.md); estimators/tfa.hpp.
 //
 //   stiffid tfa TRIAL.csv --angles th1,th2 --onset 2.5|auto [--forces fx,fy]
-//               [--method spectrogram] [--baseline BASE.csv] [--subject SPEC.json]
+//               [--method modal|spectrogram] [--decimate-hz 200] [--knots-s 0.1]
+//               [--shape-knots-s 0.5] [--baseline BASE.csv] [--subject SPEC.json]
 //               [--window kaiser:3|hann|gaussian:S] [--window-s 0.75] [--hop-s 0.0025]
 //               [--fft-size N] [--fmin 0.5] [--fmax 20] [--jump-penalty 2] [--max-jump-hz 0.5]
 //               [--sg-window-s 0.25] [--sg-order 3] [--pulse-s 0.02] [--analytic]
@@ -18,13 +20,19 @@
 //   "eta_squared_per_s2"[j] (eq 46), "phase_difference_rad"[j], "time_lag_s"[j] (eq 42),
 //   "eigenvectors"[r][c] (P(t), columns = modes), "mode_shapes"[r][c] (joint space),
 //   "K_nm_per_rad"[r][c], "C_nms_per_rad"[r][c] (eq 48),
-//   "normalized_force": {"q"[j], "q_dot"[j], "sigma"[j], "envelope"[j], "envelope_force"[j]}.
+//   "normalized_force": {"q"[j], "q_dot"[j], "sigma"[j], "envelope"[j], "envelope_force"[j]},
+//   "valid"[j] (per time: mode j's amplitude-to-noise ratio and frequency SD within limits; all
+//   true for the spectrogram method when every frame resolved), "anr_db"[j] (modal; null for the
+//   spectrogram), "K_valid" (per time: every mode valid and eta^2 > Gamma^2; modal).
+// For --method modal the spectrogram options are not used; "options" lists the modal ones and the
+// data-chosen weights, and f_ridge_hz / alpha_ridge_per_s repeat the fitted tracks.
 // --spectrogram writes CSV rows t_s,f_hz,channel,power,t_reassigned_s,f_reassigned_hz for the bins
 // within 60 dB of the map's peak (scripts/plot_spectrogram.py draws it with the ridges).
 // Exit 2 on bad input, 1 when frames cannot be resolved; no file is written then.
 
 #include <cmath>
 #include <fstream>
+#include <iostream>
 #include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -43,7 +51,7 @@ namespace stiffid::apps {
 namespace {
 
 struct TfaCommandOptions {
-  std::string trial_path, angles, forces, onset, method = "spectrogram", baseline_path,
+  std::string trial_path, angles, forces, onset, method = "modal", baseline_path,
       subject_path, window = "kaiser:3", output_path, spectrogram_path;
   estimators::TfaOptions tfa;
 };
@@ -153,6 +161,9 @@ std::string spectrogram_csv(const estimators::ReassignedSpectrogram& sg,
 void run(TfaCommandOptions cli) {
   estimators::TfaOptions& o = cli.tfa;
   o.method = estimators::parse_tfa_method(cli.method);
+  if (!cli.spectrogram_path.empty() && o.method != estimators::TfaMethod::spectrogram) {
+    throw InputError("--spectrogram: the time-frequency map exists only with --method spectrogram");
+  }
   o.deviation.angle_channels = data::split_list(cli.angles, "--angles");
   if (!cli.forces.empty()) o.deviation.force_channels = data::split_list(cli.forces, "--forces");
   if (cli.onset == "auto") {
@@ -183,19 +194,46 @@ void run(TfaCommandOptions cli) {
        {{"l1_m", o.arm.l1_m}, {"r1_m", o.arm.r1_m}, {"m1_kg", o.arm.m1_kg},
         {"iz1_kg_m2", o.arm.iz1_kg_m2}, {"l2_m", o.arm.l2_m}, {"r2_m", o.arm.r2_m},
         {"m2_kg", o.arm.m2_kg}, {"iz2_kg_m2", o.arm.iz2_kg_m2}}},
-      {"window", o.spectrogram.window.name()},
-      {"window_s", 2.0 * r.spectrogram.half_length / r.analysis_rate_hz},
-      {"hop_s", r.spectrogram.hop_s},
-      {"fft_size", r.spectrogram.fft_size},
-      {"fmin_hz", o.ridges.min_frequency_hz},
-      {"fmax_hz", o.ridges.max_frequency_hz},
-      {"jump_penalty_per_hz", o.ridges.jump_penalty_per_hz},
-      {"max_jump_hz", o.ridges.max_jump_hz},
-      {"sg_window_s", o.modal.smoothing.window_s},
-      {"sg_order", o.modal.smoothing.polynomial_order},
       {"pulse_s", o.deviation.pulse_s},
-      {"analytic", o.deviation.analytic},
       {"decimation", r.decimation}};
+  if (o.method == estimators::TfaMethod::modal) {
+    const estimators::DampedModesOptions& mo = o.modes;
+    out["options"].update({{"decimate_hz", mo.decimate_hz},
+                           {"knots_s", mo.knot_spacing_s},
+                           {"shape_knots_s", mo.shape_knot_spacing_s},
+                           {"skip_s", mo.skip_s},
+                           {"noise_window_s", mo.noise_window_s},
+                           {"init_window_s", mo.init_window_s},
+                           {"anr_threshold_db", mo.anr_threshold_db},
+                           {"max_frequency_sd_hz", mo.max_frequency_sd_hz},
+                           {"shape_weight", r.modes.shape_weight},
+                           {"track_roughness", r.modes.track_roughness},
+                           {"shape_weight_from_data", mo.shape_weight < 0.0},
+                           {"track_roughness_from_data", mo.track_roughness < 0.0},
+                           {"mapping", "state_space"}});
+    out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
+    out["converged"] = r.modes.converged;
+    if (!r.modes.warning.empty()) std::cerr << "stiffid tfa: warning: " << r.modes.warning << '\n';
+    const Eigen::MatrixXd& cov = r.modes.noise_covariance;
+    nlohmann::json noise = nlohmann::json::array();
+    for (Eigen::Index i = 0; i < cov.rows(); ++i) {
+      noise.push_back(std::vector<double>(cov.cols()));
+      for (Eigen::Index k = 0; k < cov.cols(); ++k) noise[i][k] = cov(i, k);
+    }
+    out["noise_covariance_rad2"] = noise;
+  } else {
+    out["options"].update({{"window", o.spectrogram.window.name()},
+                           {"window_s", 2.0 * r.spectrogram.half_length / r.analysis_rate_hz},
+                           {"hop_s", r.spectrogram.hop_s},
+                           {"fft_size", r.spectrogram.fft_size},
+                           {"fmin_hz", o.ridges.min_frequency_hz},
+                           {"fmax_hz", o.ridges.max_frequency_hz},
+                           {"jump_penalty_per_hz", o.ridges.jump_penalty_per_hz},
+                           {"max_jump_hz", o.ridges.max_jump_hz},
+                           {"sg_window_s", o.modal.smoothing.window_s},
+                           {"sg_order", o.modal.smoothing.polynomial_order},
+                           {"analytic", o.deviation.analytic}});
+  }
   out["onset_s"] = r.deviation.onset_s;
   out["free_start_s"] = r.deviation.free_start_s;
   out["analysed_s"] = {r.region_begin_s, r.region_end_s};
@@ -227,6 +265,24 @@ void run(TfaCommandOptions cli) {
                              {"sigma", columns(r.force.force)},
                              {"envelope", columns(r.force.envelope)},
                              {"envelope_force", columns(r.force.envelope_force)}};
+  nlohmann::json valid = nlohmann::json::array(), anr = nlohmann::json::array();
+  const Eigen::Index frames = r.modal.time_s.size();
+  for (Eigen::Index j = 0; j < r.modal.omega_rad_per_s.cols(); ++j) {
+    if (o.method == estimators::TfaMethod::modal) {
+      const auto& track = r.modes.modes[j];
+      valid.push_back(std::vector<bool>(track.valid.data(), track.valid.data() + track.valid.size()));
+      anr.push_back(series(track.anr_db));
+    } else {
+      valid.push_back(std::vector<bool>(frames, r.status.ok));
+      anr.push_back(std::vector<std::nullptr_t>(frames, nullptr));
+    }
+  }
+  out["valid"] = valid;
+  out["anr_db"] = anr;
+  if (o.method == estimators::TfaMethod::modal) {
+    const auto& ok = r.parameters.valid;
+    out["K_valid"] = std::vector<bool>(ok.data(), ok.data() + ok.size());
+  }
   if (!cli.spectrogram_path.empty()) {
     data::write_file_atomically(cli.spectrogram_path,
                                 spectrogram_csv(r.spectrogram, o.deviation.angle_channels));
@@ -242,12 +298,34 @@ void add_tfa_command(CLI::App& app) {
   CLI::App* sub = app.add_subcommand(
       "tfa",
       "time-varying joint stiffness K(t) and damping C(t) from one impulse-perturbed trial: "
-      "reassigned spectrogram, ridges and modal analysis (Piovesan et al. 2012 eqs 23-49)");
+      "damped-mode fit (default) or reassigned spectrogram, then modal analysis (Piovesan et al. "
+      "2012 eqs 23-49)");
   sub->add_option("trial", cli->trial_path, "trial CSV with a t column (s)")->required();
   sub->add_option("--angles", cli->angles, "shoulder,elbow angle channels (rad)")->required();
   sub->add_option("--onset", cli->onset, "pulse onset in s, or auto (from --forces)")->required();
   sub->add_option("--forces", cli->forces, "force channels (N), for --onset auto");
-  sub->add_option("--method", cli->method, "identification method: spectrogram")
+  sub->add_option("--method", cli->method,
+                  "modal (damped modes fitted to the whole free response, docs/tfa_modal.md) or "
+                  "spectrogram (Piovesan 2012, docs/tfa.md)")
+      ->capture_default_str();
+  sub->add_option("--decimate-hz", o.modes.decimate_hz,
+                  "modal: rate the deviations are low-passed and decimated to, Hz (<= 0: none)")
+      ->capture_default_str();
+  sub->add_option("--knots-s", o.modes.knot_spacing_s,
+                  "modal: knot spacing of the frequency and decay splines, s")
+      ->capture_default_str();
+  sub->add_option("--shape-knots-s", o.modes.shape_knot_spacing_s,
+                  "modal: knot spacing of the mode-shape splines, s (<= 0: constant shapes)")
+      ->capture_default_str();
+  sub->add_option("--noise-window-s", o.modes.noise_window_s,
+                  "modal: span before the onset whose deviations give the noise covariance, s")
+      ->capture_default_str();
+  sub->add_option("--track-roughness", o.modes.track_roughness,
+                  "modal: prior SD of the second differences of the frequency (rad/s) and decay "
+                  "(1/s) spline coefficients (< 0: chosen by GCV)")
+      ->capture_default_str();
+  sub->add_option("--shape-weight", o.modes.shape_weight,
+                  "modal: weight of the penalty on mode-shape changes (< 0: chosen from the data)")
       ->capture_default_str();
   sub->add_option("--baseline", cli->baseline_path,
                   "unperturbed trial (same angle channels and rate); default: the posture is "

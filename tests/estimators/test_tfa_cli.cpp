@@ -32,7 +32,7 @@ fs::path scratch(const std::string& name) {
 BOOST_AUTO_TEST_CASE(writes_the_documented_keys_with_auto_onset) {
   const fs::path out = scratch("out.json"), map = scratch("map.csv");
   BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset auto --forces fx,fy -o " +
-                          out.string() + " --spectrogram " + map.string()),
+                          out.string() + " --method spectrogram --spectrogram " + map.string()),
                       0);
   std::ifstream in(out);
   const nlohmann::json j = nlohmann::json::parse(in);
@@ -50,6 +50,38 @@ BOOST_AUTO_TEST_CASE(writes_the_documented_keys_with_auto_onset) {
   // measures 0.03 % RMS over 2.6-4.5 s).
   BOOST_CHECK_CLOSE(j["K_nm_per_rad"][0][0][frames / 2].get<double>(), 35.0, 1.0);
   BOOST_CHECK(fs::file_size(map) > 0);
+}
+
+BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode) {
+  const fs::path out = scratch("modal.json");
+  BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --decimate-hz 200 --knots-s 0.1 -o " +
+                          out.string()),
+                      0);
+  std::ifstream in(out);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  BOOST_CHECK_EQUAL(j["method"], "modal");
+  for (const char* key : {"t_s", "f_hz", "amplitude", "alpha_per_s", "gamma_per_s",
+                          "eta_squared_per_s2", "K_nm_per_rad", "C_nms_per_rad", "eigenvectors",
+                          "normalized_force", "options", "valid", "anr_db", "K_valid",
+                          "noise_covariance_rad2", "residual_rms_whitened"}) {
+    BOOST_CHECK_MESSAGE(j.contains(key), key);
+  }
+  const size_t frames = j["t_s"].size();
+  BOOST_CHECK_GT(frames, 400u);  // ~2.4 s of free response at 200 Hz
+  BOOST_CHECK_CLOSE(j["options"]["decimate_hz"].get<double>(), 200.0, 1e-12);
+  BOOST_CHECK_EQUAL(j["valid"].size(), 2u);
+  BOOST_CHECK_EQUAL(j["valid"][0].size(), frames);
+  BOOST_CHECK_EQUAL(j["anr_db"][1].size(), frames);
+  BOOST_CHECK_EQUAL(j["K_valid"].size(), frames);
+  // Noise-free constant K0 = [35 5; 5 20] N m/rad: mid-record k11 within 1 %.
+  BOOST_CHECK_CLOSE(j["K_nm_per_rad"][0][0][frames / 2].get<double>(), 35.0, 1.0);
+  // The spectrogram map belongs to the spectrogram method only.
+  const fs::path map = scratch("modal_map.csv");
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 -o " + out.string() +
+                        " --spectrogram " + map.string()),
+                    2);
+  BOOST_CHECK(!fs::exists(map));
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --method wavelet"), 2);
 }
 
 BOOST_AUTO_TEST_CASE(bad_input_exits_2_without_writing) {
