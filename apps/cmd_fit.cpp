@@ -1,13 +1,21 @@
 // `stiffid fit kv|pt|duffing TRIAL.csv --inputs f1,f2 --outputs x1,x2 [--hold foh|zoh]
 //  [--starts 16] [--seed S] [--bounds FILE] [-o OUT.json]`: lumped-model fit to a time-series trial
-// (fitting/lumped_fit.hpp). A fit that does not converge writes no file and exits 1.
+// (fitting/lumped_fit.hpp);
+// `stiffid fit kv|pt --frf FRF.json [--band LO:HI] [--min-coherence 0.5] [...]`: fit to the
+// compliance estimated by `stiffid frf` (fitting/frf_fit.hpp). A fit that does not converge writes
+// no file and exits 1.
 
 #include <memory>
+#include <stdexcept>
+#include <string>
+#include <tuple>
+#include <utility>
 
 #include "apps/commands.hpp"
 #include "data/csv.hpp"
 #include "data/error.hpp"
 #include "data/output.hpp"
+#include "fitting/frf_fit.hpp"
 #include "fitting/lumped_fit.hpp"
 
 namespace stiffid::apps {
@@ -24,16 +32,56 @@ struct FitArgs {
   std::string bounds;
   std::string frf;
   std::string tfa;
+  std::string band;
+  double min_coherence = 0.5;
   double segment_s = 1.0;
   int max_iterations = 200;
   std::string out;
 };
 
+// --band LO:HI in Hz.
+std::pair<double, double> parse_band(const std::string& text) {
+  const auto colon = text.find(':');
+  try {
+    if (colon == std::string::npos) throw std::invalid_argument("no colon");
+    std::size_t used_lo = 0, used_hi = 0;
+    const std::string lo = text.substr(0, colon), hi = text.substr(colon + 1);
+    const double a = std::stod(lo, &used_lo), b = std::stod(hi, &used_hi);
+    if (used_lo != lo.size() || used_hi != hi.size() || !(a >= 0.0) || !(b > a)) {
+      throw std::invalid_argument("range");
+    }
+    return {a, b};
+  } catch (const std::exception&) {
+    throw InputError("--band: '" + text + "': expected LO:HI in Hz with 0 <= LO < HI");
+  }
+}
+
+void run_frf_fit(const FitArgs& a) {
+  if (!a.trial.empty() || !a.inputs.empty() || !a.outputs.empty()) {
+    throw InputError("--frf: give either TRIAL.csv with --inputs/--outputs or --frf, not both");
+  }
+  fitting::FrfFitOptions o;
+  o.model = fitting::parse_lumped_model(a.model, "fit MODEL");
+  o.starts = a.starts;
+  o.seed = a.seed;
+  o.max_iterations = a.max_iterations;
+  o.min_coherence = a.min_coherence;
+  if (!a.band.empty()) std::tie(o.band_low_hz, o.band_high_hz) = parse_band(a.band);
+  if (!a.bounds.empty()) o.ranges = fitting::read_ranges_json(a.bounds, o.model);
+  const fitting::FrfTarget target = fitting::read_frf_json(a.frf);
+  const fitting::LumpedFitResult r = fitting::fit_frf(target, o);
+  if (!r.status.ok) throw NumericalFailure(a.frf + ": " + r.status.message);
+  data::write_json(a.out, fitting::to_json(r));
+}
+
 void run_fit(const FitArgs& a) {
-  if (!a.frf.empty() || !a.tfa.empty()) {
-    throw InputError(std::string(a.frf.empty() ? "--tfa" : "--frf") +
-                     ": fits to frequency responses and time-frequency estimates are not "
-                     "available in this build; give TRIAL.csv with --inputs and --outputs");
+  if (!a.tfa.empty()) {
+    throw InputError("--tfa: fits to time-frequency estimates are not available yet; fit the "
+                     "trial (TRIAL.csv --inputs --outputs) or its FRF (--frf)");
+  }
+  if (!a.frf.empty()) {
+    run_frf_fit(a);
+    return;
   }
   if (a.trial.empty()) throw InputError("fit: expected TRIAL.csv (or --frf / --tfa)");
   if (a.inputs.empty()) throw InputError("--inputs: expected the force channels, e.g. fx,fy");
@@ -70,7 +118,11 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("--bounds", args->bounds, "JSON {NAME: [lower, upper]} start box per matrix");
   cmd->add_option("--segment", args->segment_s, "multiple-shooting segment length, s (0: single)");
   cmd->add_option("--max-iterations", args->max_iterations, "iterations per local solve stage");
-  cmd->add_option("--frf", args->frf, "fit to a `stiffid frf` JSON (not available yet)");
+  cmd->add_option("--frf", args->frf, "fit kv or pt to the compliance in a `stiffid frf` JSON");
+  cmd->add_option("--band", args->band, "with --frf: frequencies used, LO:HI in Hz (default all)");
+  cmd->add_option("--min-coherence", args->min_coherence,
+                  "with --frf: leave out frequencies where an output's multiple coherence is lower")
+      ->capture_default_str();
   cmd->add_option("--tfa", args->tfa, "fit to a `stiffid tfa` JSON (not available yet)");
   cmd->add_option("-o,--output", args->out, "output JSON (stdout when absent)");
   cmd->callback([args]() { run_fit(*args); });

@@ -326,32 +326,6 @@ StartSolution solve_start(const FitData& data, const Segments& seg, const Lumped
 }
 
 /// Start points: the box centre, then a Latin hypercube over the diagonal entries.
-std::vector<Eigen::VectorXd> start_points(LumpedModel model, int n,
-                                          const std::map<std::string, StartRange>& ranges,
-                                          int starts, std::uint64_t seed) {
-  const std::vector<MatrixParameter> layout = model_matrices(model);
-  const int dims = static_cast<int>(layout.size()) * n;
-  Eigen::MatrixXd unit(starts, dims);
-  unit.row(0).setConstant(0.5);
-  if (starts > 1) unit.bottomRows(starts - 1) = latin_hypercube(starts - 1, dims, seed);
-  std::vector<Eigen::VectorXd> points;
-  for (int s = 0; s < starts; ++s) {
-    std::vector<Eigen::MatrixXd> mats;
-    for (std::size_t m = 0; m < layout.size(); ++m) {
-      const StartRange r = ranges.at(layout[m].name);
-      Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n, n);
-      for (int i = 0; i < n; ++i) {
-        const double u = unit(s, static_cast<int>(m) * n + i);
-        a(i, i) = layout[m].diagonal
-                      ? r.lower + u * (r.upper - r.lower)
-                      : std::exp(std::log(r.lower) + u * (std::log(r.upper) - std::log(r.lower)));
-      }
-      mats.push_back(a);
-    }
-    points.push_back(matrices_to_theta(model, mats));
-  }
-  return points;
-}
 
 void check_finite(const Eigen::MatrixXd& a, const std::string& what) {
   for (Eigen::Index i = 0; i < a.rows(); ++i) {
@@ -409,7 +383,36 @@ void validate(const Eigen::MatrixXd& u, const Eigen::MatrixXd& y, double rate_hz
   }
 }
 
-/// d(matrix entries)/d(theta), (sum of n^2 over matrices x P), with jets.
+
+}  // namespace
+
+std::vector<Eigen::VectorXd> start_points(LumpedModel model, int n,
+                                          const std::map<std::string, StartRange>& ranges,
+                                          int starts, std::uint64_t seed) {
+  const std::vector<MatrixParameter> layout = model_matrices(model);
+  const int dims = static_cast<int>(layout.size()) * n;
+  Eigen::MatrixXd unit(starts, dims);
+  unit.row(0).setConstant(0.5);
+  if (starts > 1) unit.bottomRows(starts - 1) = latin_hypercube(starts - 1, dims, seed);
+  std::vector<Eigen::VectorXd> points;
+  for (int s = 0; s < starts; ++s) {
+    std::vector<Eigen::MatrixXd> mats;
+    for (std::size_t m = 0; m < layout.size(); ++m) {
+      const StartRange r = ranges.at(layout[m].name);
+      Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n, n);
+      for (int i = 0; i < n; ++i) {
+        const double u = unit(s, static_cast<int>(m) * n + i);
+        a(i, i) = layout[m].diagonal
+                      ? r.lower + u * (r.upper - r.lower)
+                      : std::exp(std::log(r.lower) + u * (std::log(r.upper) - std::log(r.lower)));
+      }
+      mats.push_back(a);
+    }
+    points.push_back(matrices_to_theta(model, mats));
+  }
+  return points;
+}
+
 Eigen::MatrixXd entries_jacobian(LumpedModel model, const Eigen::VectorXd& theta, int n) {
   const int p = static_cast<int>(theta.size());
   const int m = static_cast<int>(model_matrices(model).size());
@@ -432,7 +435,56 @@ Eigen::MatrixXd entries_jacobian(LumpedModel model, const Eigen::VectorXd& theta
   return g;
 }
 
-}  // namespace
+void set_parameters(LumpedFitResult& result, ceres::Problem& problem,
+                    const std::vector<double*>& blocks, double dof_left) {
+  const int n = result.dof;
+  const int p_theta = static_cast<int>(result.theta.size());
+  Eigen::MatrixXd cov_theta = Eigen::MatrixXd::Constant(p_theta, p_theta,
+                                                        std::numeric_limits<double>::quiet_NaN());
+  result.standard_errors_ok = false;
+  ceres::Problem::EvaluateOptions eo;
+  eo.parameter_blocks = blocks;
+  ceres::CRSMatrix crs;
+  double unused = 0.0;
+  if (dof_left > 0 && problem.Evaluate(eo, &unused, nullptr, nullptr, &crs)) {
+    Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+    for (int r = 0; r < crs.num_rows; ++r) {
+      for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) jac(r, crs.cols[k]) = crs.values[k];
+    }
+    // (J^T J)^-1 from the SVD of the column-scaled Jacobian: the columns differ by many orders
+    // of magnitude (B in N/m^3 against log-diagonals), which scaling removes before the rank test.
+    Eigen::VectorXd scale = jac.colwise().norm().transpose();
+    for (Eigen::Index c = 0; c < scale.size(); ++c) scale(c) = scale(c) > 0.0 ? 1.0 / scale(c) : 1.0;
+    jac = jac * scale.asDiagonal();
+    Eigen::BDCSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeThinV);
+    const Eigen::VectorXd sv = svd.singularValues();
+    // rank test on the scaled Jacobian: 1e-10 leaves 1e-6 relative accuracy in the variances
+    if (sv.size() > 0 && sv(sv.size() - 1) > 1e-10 * sv(0)) {
+      const Eigen::MatrixXd v = svd.matrixV().topRows(p_theta);
+      const Eigen::MatrixXd c = v * sv.cwiseInverse().cwiseAbs2().asDiagonal() * v.transpose();
+      const Eigen::VectorXd st = scale.head(p_theta);
+      cov_theta = st.asDiagonal() * c * st.asDiagonal() * (2.0 * result.cost / dof_left);
+      result.standard_errors_ok = cov_theta.allFinite();
+    }
+  }
+  const Eigen::MatrixXd g = entries_jacobian(result.model, result.theta, n);
+  const Eigen::VectorXd var = (g * cov_theta * g.transpose()).diagonal();
+  const std::vector<SmallMatrix<double>> mats =
+      theta_to_matrices(result.theta.data(), result.model, n);
+  const std::vector<MatrixParameter> layout = model_matrices(result.model);
+  result.parameters.clear();
+  for (std::size_t a = 0; a < layout.size(); ++a) {
+    FittedMatrix fm{layout[a].name, layout[a].unit, mats[a], Eigen::MatrixXd(n, n)};
+    for (int r = 0; r < n; ++r) {
+      for (int c = 0; c < n; ++c) {
+        fm.std_error(r, c) = result.standard_errors_ok
+                                 ? std::sqrt(std::max(0.0, var(static_cast<int>(a) * n * n + r * n + c)))
+                                 : std::numeric_limits<double>::quiet_NaN();
+      }
+    }
+    result.parameters.push_back(fm);
+  }
+}
 
 std::map<std::string, StartRange> default_ranges(LumpedModel model, const Eigen::MatrixXd& u,
                                                  const Eigen::MatrixXd& y, double rate_hz) {
@@ -533,59 +585,17 @@ LumpedFitResult fit_lumped(const Eigen::MatrixXd& u, const Eigen::MatrixXd& y, d
 
   // Standard errors: Cov(theta) = sigma^2 (J^T J)^-1 with J the Jacobian Ceres evaluates at the
   // solution (continuity rows included, so their large weight makes it the covariance under
-  // continuity), sigma^2 = 2 cost / (m - p) with
-  // m data residuals and p = theta plus one free initial state; entries by the delta method.
-  const int p_theta = data.params;
-  Eigen::MatrixXd cov_theta = Eigen::MatrixXd::Constant(p_theta, p_theta,
-                                                        std::numeric_limits<double>::quiet_NaN());
+  // continuity), sigma^2 = 2 cost / (m - p) with m data residuals and p = theta plus one free
+  // initial state; entries by the delta method.
   {
     ceres::Problem problem;
     Eigen::VectorXd theta = best.theta;
     std::vector<Eigen::VectorXd> states = best.states;
     build_problem(problem, data, seg, theta, states, o.continuity_weight, best.substeps);
-    // (J^T J)^-1 from the SVD of the column-scaled Jacobian: the columns differ by many orders
-    // of magnitude (B in N/m^3 against log-diagonals), which scaling removes before the rank test.
     std::vector<double*> blocks{theta.data()};
     for (Eigen::VectorXd& z : states) blocks.push_back(z.data());
-    ceres::Problem::EvaluateOptions eo;
-    eo.parameter_blocks = blocks;
-    ceres::CRSMatrix crs;
-    double unused = 0.0;
     const double m_rows = static_cast<double>(u.rows() * n);
-    const double dof_left = m_rows - p_theta - data.state;
-    if (dof_left > 0 && problem.Evaluate(eo, &unused, nullptr, nullptr, &crs)) {
-      Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
-      for (int r = 0; r < crs.num_rows; ++r) {
-        for (int k = crs.rows[r]; k < crs.rows[r + 1]; ++k) jac(r, crs.cols[k]) = crs.values[k];
-      }
-      Eigen::VectorXd scale = jac.colwise().norm().transpose();
-      for (Eigen::Index c = 0; c < scale.size(); ++c) scale(c) = scale(c) > 0.0 ? 1.0 / scale(c) : 1.0;
-      jac = jac * scale.asDiagonal();
-      Eigen::BDCSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeThinV);
-      const Eigen::VectorXd sv = svd.singularValues();
-      // rank test on the scaled Jacobian: 1e-10 leaves 1e-6 relative accuracy in the variances
-      if (sv.size() > 0 && sv(sv.size() - 1) > 1e-10 * sv(0)) {
-        const Eigen::MatrixXd v = svd.matrixV().topRows(p_theta);
-        const Eigen::MatrixXd c = v * sv.cwiseInverse().cwiseAbs2().asDiagonal() * v.transpose();
-        const Eigen::VectorXd st = scale.head(p_theta);
-        cov_theta = st.asDiagonal() * c * st.asDiagonal() * (2.0 * result.cost / dof_left);
-        result.standard_errors_ok = cov_theta.allFinite();
-      }
-    }
-  }
-  const Eigen::MatrixXd g = entries_jacobian(o.model, best.theta, n);
-  const Eigen::VectorXd var = (g * cov_theta * g.transpose()).diagonal();
-  const std::vector<SmallMatrix<double>> mats = theta_to_matrices(best.theta.data(), o.model, n);
-  const std::vector<MatrixParameter> layout = model_matrices(o.model);
-  for (std::size_t a = 0; a < layout.size(); ++a) {
-    FittedMatrix fm{layout[a].name, layout[a].unit, mats[a], Eigen::MatrixXd(n, n)};
-    for (int r = 0; r < n; ++r) {
-      for (int c = 0; c < n; ++c) {
-        fm.std_error(r, c) = std::sqrt(std::max(0.0, var(static_cast<int>(a) * n * n + r * n + c)));
-        if (!result.standard_errors_ok) fm.std_error(r, c) = std::numeric_limits<double>::quiet_NaN();
-      }
-    }
-    result.parameters.push_back(fm);
+    set_parameters(result, problem, blocks, m_rows - data.params - data.state);
   }
   if (result.status.ok && !result.standard_errors_ok) {
     result.status.message = "standard errors unavailable: the Jacobian is rank deficient";
@@ -654,8 +664,9 @@ nlohmann::json to_json(const LumpedFitResult& r) {
     j["parameters"][m.name] = {{"value", matrix(m.value)}, {"std_error", matrix(m.std_error)},
                                {"unit", m.unit}};
   }
+  j["target"] = r.target;
   j["vaf_percent"] = vector(r.vaf_percent);
-  j["residual_rms_m"] = vector(r.residual_rms_m);
+  j[r.target == "frf" ? "residual_rms_m_per_n" : "residual_rms_m"] = vector(r.residual_rms_m);
   j["status"] = r.status.ok;
   j["message"] = r.status.message;
   j["termination"] = r.termination;

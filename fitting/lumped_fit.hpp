@@ -16,6 +16,10 @@
 #include "data/trial.hpp"
 #include "fitting/lumped_model.hpp"
 
+namespace ceres {
+class Problem;
+}
+
 namespace stiffid::fitting {
 
 /// Sampling range of the diagonal entries of one matrix for the multi-start. SPD matrices are
@@ -62,10 +66,12 @@ struct FittedMatrix {
 
 struct LumpedFitResult {
   LumpedModel model = LumpedModel::kelvin_voigt;
+  std::string target = "trial";          ///< "trial" (time series) or "frf" (frf_fit.hpp)
   int dof = 0;
   std::vector<FittedMatrix> parameters;  ///< in model_matrices order
   Eigen::VectorXd vaf_percent;           ///< [n] variance accounted for per output, %
-  Eigen::VectorXd residual_rms_m;        ///< [n] RMS of measured minus simulated output, m
+  Eigen::VectorXd residual_rms_m;        ///< [n] RMS of measured minus simulated output, m (for
+                                         ///< an FRF target: of |H_model - H_est|, m/N)
   Status status;                         ///< ok when the best start converged
   std::string termination;               ///< Ceres termination type and message of the best start
   int iterations = 0;                    ///< LM iterations of the best start (all stages)
@@ -103,6 +109,23 @@ LumpedFitResult fit_lumped(const data::Trial& trial, const std::vector<std::stri
 Eigen::MatrixXd simulate_lumped(LumpedModel model, const Eigen::VectorXd& theta,
                                 const Eigen::VectorXd& z0, const Eigen::MatrixXd& inputs_n,
                                 double sample_rate_hz, InputHold hold, int substeps);
+
+/// Start points of the multi-start: point 0 the centre of the box (geometric for SPD matrices), the
+/// others a Latin hypercube from `seed`; diagonal entries only (off-diagonals 0).
+std::vector<Eigen::VectorXd> start_points(LumpedModel model, int n,
+                                          const std::map<std::string, StartRange>& ranges,
+                                          int starts, std::uint64_t seed);
+
+/// d(matrix entries)/d(theta): (matrices * n^2 x P), rows matrix by matrix, entries row-major.
+Eigen::MatrixXd entries_jacobian(LumpedModel model, const Eigen::VectorXd& theta, int n);
+
+/// Fills result.parameters (values and standard errors) from result.theta, result.cost and the
+/// Jacobian of `problem` at its current values: Cov(theta) = sigma^2 (J^T J)^-1, sigma^2 =
+/// 2 cost / dof_left, through the SVD of the column-scaled Jacobian (rank test 1e-10), entries by
+/// the delta method; NaN standard errors and standard_errors_ok false when rank deficient.
+/// `blocks` lists the problem's parameter blocks, theta first.
+void set_parameters(LumpedFitResult& result, ceres::Problem& problem,
+                    const std::vector<double*>& blocks, double dof_left);
 
 /// Reads a start box file: a JSON object {NAME: [lower, upper], ...} with NAME among the model's
 /// matrices. Throws InputError naming the file and key on anything else.
