@@ -9,7 +9,7 @@ runs="${2:-7}"
 stiffid="$build/stiffid"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
-python3 "$here/peer_tfa.py" --make-trial "$work/trial.csv"
+/usr/bin/python3 "$here/peer_tfa.py" --make-trial "$work/trial.csv"
 time_one() {  # wall seconds of one run of "$@"
   local start end
   start=$(date +%s.%N)
@@ -23,7 +23,7 @@ median() { sort -g | awk '{a[NR] = $1} END {print (NR % 2) ? a[(NR + 1) / 2] : (
 for _ in $(seq "$runs"); do
   time_one "$stiffid" tfa "$work/trial.csv" --angles th1,th2 --onset 2.5 --method spectrogram \
     -o "$work/out.json" >> "$work/cpp"
-  time_one python3 "$here/peer_tfa.py" "$work/trial.csv" --onset 2.5 >> "$work/py"
+  time_one /usr/bin/python3 "$here/peer_tfa.py" "$work/trial.csv" --onset 2.5 >> "$work/py"
 done
 cpp=$(median < "$work/cpp")
 py=$(median < "$work/py")
