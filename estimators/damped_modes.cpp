@@ -175,21 +175,23 @@ class VpProblem {
   // (row-major, residuals x parameters). Returns the linear solution in `linear_out`.
   bool evaluate(const double* theta, double* residuals, double* jacobian,
                 Eigen::VectorXd* linear_out) const {
-    Eigen::MatrixXcd e;
+    // Work buffers are members (one solve uses a problem at a time): a fresh ~1 MB Jacobian
+    // workspace per evaluation cost more in page faults than the arithmetic.
+    Eigen::MatrixXcd& e = e_;
     if (!oscillations(theta, e)) return false;
-    Eigen::MatrixXd a_data, a_penalty;
-    design(e, a_data, a_penalty);
+    design(e, a_data_, a_penalty_);
     const int rd = data_rows(), rp = penalty_rows(), nl = linear(), np = parameters();
-    Eigen::MatrixXd a(rd + rp, nl);
-    a << a_data, sqrt_weight_ * a_penalty;
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(rd + rp);
-    b.head(rd) = p_.yw;
-    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(a);
-    const Eigen::VectorXd beta = qr.solve(b);
+    Eigen::MatrixXd& a = a_;
+    a.resize(rd + rp, nl);
+    a << a_data_, sqrt_weight_ * a_penalty_;
+    b_.setZero(rd + rp);
+    b_.head(rd) = p_.yw;
+    qr_.compute(a);
+    const Eigen::VectorXd beta = qr_.solve(b_);
     if (!beta.allFinite()) return false;
     const Eigen::Map<const Eigen::VectorXd> th(theta, np);
     Eigen::Map<Eigen::VectorXd> r(residuals, residuals_count());
-    r.head(rd + rp) = b - a * beta;
+    r.head(rd + rp) = b_ - a * beta;
     r.tail(prior_.rows()) = prior_ * th;
     if (linear_out) *linear_out = beta;
     if (!jacobian) return true;
@@ -199,7 +201,8 @@ class VpProblem {
     const int c = static_cast<int>(p_.whiten.rows());
     const int n = static_cast<int>(e.rows());
     const int m = basis();
-    Eigen::MatrixXcd contribution = Eigen::MatrixXcd::Zero(n * c, modes_);
+    Eigen::MatrixXcd& contribution = contribution_;
+    contribution.setZero(n * c, modes_);
     for (size_t t = 0; t < terms_.size(); ++t) {
       const LinearTerm& term = terms_[t];
       const Complex coef(beta(2 * t), beta(2 * t + 1));
@@ -208,7 +211,8 @@ class VpProblem {
         for (int k = 0; k < c; ++k) contribution(i * c + k, term.mode) += term.direction(k) * v;
       }
     }
-    Eigen::MatrixXd d = Eigen::MatrixXd::Zero(rd + rp, np);
+    Eigen::MatrixXd& d = d_;
+    d.setZero(rd + rp, np);
     for (int j = 0; j < modes_; ++j)
       for (int i = 0; i < n; ++i)
         for (int k = 0; k < c; ++k) {
@@ -220,10 +224,15 @@ class VpProblem {
             d(i * c + k, (2 * j + 1) * m + q) = -g * y.imag();
           }
         }
-    const int rank = static_cast<int>(qr.rank());
-    const Eigen::MatrixXd q_thin = qr.householderQ() * Eigen::MatrixXd::Identity(rd + rp, rank);
+    // -(I - Q Q^T) D through the Householder reflectors: Q^T D, drop its first `rank` rows
+    // (the part in the range of A), back with Q.
+    const int rank = static_cast<int>(qr_.rank());
+    const auto householder = qr_.householderQ().setLength(qr_.nonzeroPivots());
+    d.applyOnTheLeft(householder.adjoint());
+    d.topRows(rank).setZero();
+    d.applyOnTheLeft(householder);
     Eigen::Map<RowMajor> jac(jacobian, residuals_count(), np);
-    jac.topRows(rd + rp) = -(d - q_thin * (q_thin.transpose() * d));
+    jac.topRows(rd + rp) = -d;
     jac.bottomRows(prior_.rows()) = prior_;
     return true;
   }
@@ -240,6 +249,11 @@ class VpProblem {
   std::vector<std::pair<int, int>> pairs_;  // linear terms whose difference is penalized
   double sqrt_weight_;
   Eigen::MatrixXd prior_;  // (R x P) roughness prior rows
+  // Work buffers of evaluate().
+  mutable Eigen::MatrixXcd e_, contribution_;
+  mutable Eigen::MatrixXd a_data_, a_penalty_, a_, d_;
+  mutable Eigen::VectorXd b_;
+  mutable Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr_;
 };
 
 class VpCost final : public ceres::CostFunction {
