@@ -43,7 +43,7 @@ void check_options(const DampedModesOptions& o) {
   if (!(o.noise_window_s > 0.0)) fail("noise_window_s", "must be positive (s)");
   if (!(o.skip_s >= 0.0)) fail("skip_s", "must be non-negative (s)");
   if (o.track_roughness == 0.0 || !std::isfinite(o.track_roughness))
-    fail("track_roughness", "must be positive (rad/s), or negative for the GCV choice");
+    fail("track_roughness", "must be positive (rad/s), or negative for the choice from the data");
   if (!(o.init_window_s > 0.0)) fail("init_window_s", "must be positive (s)");
   if (!(o.max_frequency_sd_hz > 0.0)) fail("max_frequency_sd_hz", "must be positive (Hz)");
   if (o.max_iterations < 1) fail("max_iterations", "must be at least 1");
@@ -442,8 +442,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   Eigen::VectorXd theta = start_tracks(p, track, result.start, options);
 
   // Stage 1: constant mode shapes, one free complex amplitude per mode and whitened channel. The
-  // track roughness is chosen by GCV along a continuation from smooth to rough (each fit starts
-  // from the smoother one), unless given.
+  // track roughness is chosen from the data by the rule below, unless given.
   std::vector<LinearTerm> terms;
   for (int j = 0; j < modes; ++j)
     for (int k = 0; k < c; ++k) terms.push_back({j, Eigen::VectorXcd::Unit(c, k), 0});
