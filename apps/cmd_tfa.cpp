@@ -31,7 +31,6 @@
 // Exit 2 on bad input, 1 when frames cannot be resolved; no file is written then.
 
 #include <cmath>
-#include <fstream>
 #include <iostream>
 #include <limits>
 #include <memory>
@@ -45,6 +44,7 @@
 #include "data/csv.hpp"
 #include "data/error.hpp"
 #include "data/output.hpp"
+#include "data/text_input.hpp"
 #include "estimators/tfa.hpp"
 
 namespace stiffid::apps {
@@ -71,13 +71,11 @@ double parse_number(const std::string& text, const std::string& flag) {
 }
 
 models::ArmParameters read_subject(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError("--subject " + path + ": cannot read the file");
   nlohmann::json spec;
   try {
-    in >> spec;
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError("--subject " + path + ": not valid JSON (" + e.what() + ")");
+    spec = data::read_json_file(path);
+  } catch (const InputError& e) {
+    throw InputError(std::string("--subject ") + e.what());
   }
   if (!spec.is_object()) throw InputError("--subject " + path + ": expected a JSON object");
   models::ArmParameters arm;

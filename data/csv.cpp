@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "data/error.hpp"
+#include "data/text_input.hpp"
 #include "data/output.hpp"
 
 namespace stiffid::data {
@@ -100,17 +101,6 @@ double parse_number(std::string_view text, const std::string& source, int line, 
   return value;
 }
 
-// The whole file in one allocation (a stream buffer would regrow and copy a 40 MB trial).
-std::string read_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  if (!in) throw InputError(path + ": cannot open (missing file or no permission)");
-  std::string text(static_cast<size_t>(in.tellg()), '\0');
-  in.seekg(0);
-  if (!in.read(text.data(), static_cast<std::streamsize>(text.size()))) {
-    throw InputError(path + ": read failed");
-  }
-  return text;
-}
 
 }  // namespace
 
@@ -168,7 +158,7 @@ CsvTable parse_csv(const std::string& text, const std::string& source) {
   return table;
 }
 
-CsvTable read_csv(const std::string& path) { return parse_csv(read_text(path), path); }
+CsvTable read_csv(const std::string& path) { return parse_csv(read_text_file(path), path); }
 
 namespace {
 
@@ -315,7 +305,7 @@ Trial parse_trial_csv(const std::string& text, const std::string& source,
 }
 
 Trial read_trial_csv(const std::string& path, const TrialCsvOptions& options) {
-  return parse_trial_csv(read_text(path), path, options);
+  return parse_trial_csv(read_text_file(path), path, options);
 }
 
 std::string trial_to_csv(const Trial& trial, bool with_units) {

@@ -5,10 +5,10 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <memory>
 
 #include "data/error.hpp"
+#include "data/text_input.hpp"
 
 namespace stiffid::fitting {
 namespace {
@@ -111,14 +111,7 @@ double mean_abs_diagonal(const Eigen::MatrixXd& a) { return a.diagonal().cwiseAb
 }  // namespace
 
 FrfTarget read_frf_json(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open the FRF file");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(path + ": not valid JSON (" + std::string(e.what()) + ")");
-  }
+  const nlohmann::json j = data::read_json_file(path);
   FrfTarget t;
   t.source = path;
   try {

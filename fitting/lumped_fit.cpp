@@ -6,12 +6,11 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <limits>
 #include <memory>
 #include <random>
-#include <sstream>
 
+#include "data/text_input.hpp"
 #include "fitting/latin_hypercube.hpp"
 
 namespace stiffid::fitting {
@@ -613,14 +612,7 @@ LumpedFitResult fit_lumped(const data::Trial& trial, const std::vector<std::stri
 }
 
 std::map<std::string, StartRange> read_ranges_json(const std::string& path, LumpedModel model) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open the bounds file");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(path + ": not valid JSON (" + std::string(e.what()) + ")");
-  }
+  const nlohmann::json j = data::read_json_file(path);
   if (!j.is_object()) throw InputError(path + ": expected an object {NAME: [lower, upper]}");
   std::map<std::string, StartRange> out;
   for (const auto& [key, value] : j.items()) {

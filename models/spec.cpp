@@ -1,13 +1,12 @@
 #include "models/spec.hpp"
 
 #include <cmath>
-#include <fstream>
 #include <map>
 #include <optional>
 #include <set>
-#include <sstream>
 
 #include "data/error.hpp"
+#include "data/text_input.hpp"
 
 namespace stiffid::models {
 
@@ -490,30 +489,7 @@ TrialSpec parse_trial_spec(const json& value, const std::string& source) {
 }
 
 TrialSpec read_trial_spec(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open the spec file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  json value;
-  try {
-    value = json::parse(buffer.str());
-  } catch (const json::parse_error& e) {
-    // nlohmann reports the byte offset; turn it into line:column.
-    const std::string text = buffer.str();
-    const std::size_t offset = std::min<std::size_t>(e.byte == 0 ? 0 : e.byte - 1, text.size());
-    int line = 1, column = 1;
-    for (std::size_t i = 0; i < offset; ++i) {
-      if (text[i] == '\n') {
-        ++line;
-        column = 1;
-      } else {
-        ++column;
-      }
-    }
-    throw InputError(path + ":" + std::to_string(line) + ":" + std::to_string(column) +
-                     ": invalid JSON (" + e.what() + ")");
-  }
-  return parse_trial_spec(value, path);
+  return parse_trial_spec(data::read_json_file(path), path);
 }
 
 namespace {

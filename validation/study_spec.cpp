@@ -1,13 +1,12 @@
 #include "validation/study_spec.hpp"
 
 #include <cstdio>
-#include <fstream>
 #include <limits>
 #include <regex>
 #include <set>
-#include <sstream>
 
 #include "data/error.hpp"
+#include "data/text_input.hpp"
 
 namespace stiffid::validation {
 namespace {
@@ -17,19 +16,6 @@ using ordered = nlohmann::ordered_json;
 const std::regex kNamePattern("[A-Za-z0-9_.-]+");
 const std::regex kPlaceholder(R"(\$\{([^}]*)\})");
 
-std::string line_column(const std::string& text, std::size_t byte) {
-  int line = 1;
-  int column = 1;
-  for (std::size_t i = 0; i < byte && i < text.size(); ++i) {
-    if (text[i] == '\n') {
-      ++line;
-      column = 1;
-    } else {
-      ++column;
-    }
-  }
-  return std::to_string(line) + ":" + std::to_string(column);
-}
 
 class Where {
  public:
@@ -229,13 +215,7 @@ std::vector<std::string> StudySpec::factor_names() const {
 
 StudySpec parse_study_spec(const std::string& text, const std::string& source) {
   const Where where(source);
-  ordered root;
-  try {
-    root = ordered::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(source + ":" + line_column(text, e.byte == 0 ? 0 : e.byte - 1) +
-                     ": invalid JSON: " + e.what());
-  }
+  const ordered root = data::parse_json_text<ordered>(text, source);
   if (!root.is_object()) where.fail("(root)", "expected a JSON object");
   reject_unknown_keys(root, {"name", "description", "seed", "replicates", "report", "designs"}, "",
                       where);
@@ -275,11 +255,7 @@ StudySpec parse_study_spec(const std::string& text, const std::string& source) {
 }
 
 StudySpec read_study_spec(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the study file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_study_spec(text.str(), path);
+  return parse_study_spec(data::read_text_file(path), path);
 }
 
 std::uint64_t cell_seed(std::uint64_t study_seed, const std::string& design,

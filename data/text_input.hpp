@@ -1,0 +1,40 @@
+#pragma once
+// Reading whole text files and JSON with errors that name the file, line and column. One place
+// for every reader of the project (trial CSVs, trial and study specs, bounds, FRF and subject
+// files).
+
+#include <cstddef>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "data/error.hpp"
+
+namespace stiffid::data {
+
+/// The whole file in one allocation. Throws InputError "PATH: cannot open (missing file or no
+/// permission)" or "PATH: read failed".
+std::string read_text_file(const std::string& path);
+
+/// "LINE:COLUMN" (both from 1) of the character at `offset` of `text` (clamped to its end).
+std::string line_column(const std::string& text, std::size_t offset);
+
+/// Parses `text` read from `source` as JSON (nlohmann::json or nlohmann::ordered_json). Throws
+/// InputError "SOURCE:LINE:COLUMN: invalid JSON (parser message)".
+template <typename Json = nlohmann::json>
+Json parse_json_text(const std::string& text, const std::string& source) {
+  try {
+    return Json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    // nlohmann reports the 1-based byte of the error (0: before the first byte).
+    throw InputError(source + ":" + line_column(text, e.byte == 0 ? 0 : e.byte - 1) +
+                     ": invalid JSON (" + e.what() + ")");
+  }
+}
+
+/// read_text_file then parse_json_text.
+template <typename Json = nlohmann::json>
+Json read_json_file(const std::string& path) {
+  return parse_json_text<Json>(read_text_file(path), path);
+}
+
+}  // namespace stiffid::data
