@@ -11,8 +11,10 @@
 #include <random>
 #include <set>
 #include <sstream>
+#include "tests/support/files.hpp"
 
 namespace fs = std::filesystem;
+using stiffid::test::read_text;
 
 namespace {
 
@@ -23,13 +25,6 @@ struct Run {
   std::string out;  // stdout
   std::string err;  // stderr
 };
-
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 // A scratch folder per test case, removed at the end.
 struct Scratch {
@@ -42,7 +37,7 @@ struct Scratch {
   ~Scratch() { fs::remove_all(dir); }
 };
 
-Run stiffid(const std::string& args, const Scratch& scratch) {
+Run run_stiffid(const std::string& args, const Scratch& scratch) {
   const fs::path out = scratch.dir / "stdout.txt";
   const fs::path err = scratch.dir / "stderr.txt";
   const std::string command = std::string("\"") + STIFFID_BINARY + "\" frf " + args + " >\"" +
@@ -70,7 +65,7 @@ std::set<std::string> keys(const nlohmann::json& j) {
 BOOST_AUTO_TEST_CASE(writes_the_contract_keys_to_a_file) {
   Scratch s;
   const fs::path json = s.dir / "frf.json";
-  const Run r = stiffid("\"" + kTrial +
+  const Run r = run_stiffid("\"" + kTrial +
                             "\" --inputs fx,fy --outputs x,y --nfft 256 --overlap 0.5 "
                             "-o \"" +
                             json.string() + "\"",
@@ -109,7 +104,7 @@ BOOST_AUTO_TEST_CASE(writes_the_contract_keys_to_a_file) {
 // carries 17 significant digits.
 BOOST_AUTO_TEST_CASE(stdout_json_matches_the_reference_frf) {
   Scratch s;
-  const Run r = stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y", s);
+  const Run r = run_stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y", s);
   BOOST_REQUIRE_EQUAL(r.exit_code, 0);
   const auto j = nlohmann::json::parse(r.out);
   std::ifstream in(std::string(STIFFID_TEST_DATA_DIR) + "/mimo/mimo_endpoint_c25_snr20.ref.json");
@@ -132,7 +127,7 @@ BOOST_AUTO_TEST_CASE(stdout_json_matches_the_reference_frf) {
 // condition numbers of H below ~1e4 here).
 BOOST_AUTO_TEST_CASE(stiffness_flag_writes_the_inverse_matrix) {
   Scratch s;
-  const Run r = stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y --stiffness", s);
+  const Run r = run_stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y --stiffness", s);
   BOOST_REQUIRE_EQUAL(r.exit_code, 0);
   const auto j = nlohmann::json::parse(r.out);
   BOOST_REQUIRE(j.contains("stiffness"));
@@ -155,7 +150,7 @@ BOOST_AUTO_TEST_CASE(missing_column_is_exit_2_naming_file_and_column) {
   Scratch s;
   const fs::path json = s.dir / "frf.json";
   const Run r =
-      stiffid("\"" + kTrial + "\" --inputs fx,fz --outputs x,y -o \"" + json.string() + "\"", s);
+      run_stiffid("\"" + kTrial + "\" --inputs fx,fz --outputs x,y -o \"" + json.string() + "\"", s);
   BOOST_CHECK_EQUAL(r.exit_code, 2);
   BOOST_CHECK(contains(r.err, "mimo_endpoint_c25_snr20.csv"));
   BOOST_CHECK(contains(r.err, "'fz'"));
@@ -165,7 +160,7 @@ BOOST_AUTO_TEST_CASE(missing_column_is_exit_2_naming_file_and_column) {
 
 BOOST_AUTO_TEST_CASE(too_few_samples_for_nfft_is_exit_2_naming_the_file) {
   Scratch s;
-  const Run r = stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y --nfft 4096", s);
+  const Run r = run_stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y --nfft 4096", s);
   BOOST_CHECK_EQUAL(r.exit_code, 2);
   BOOST_CHECK(contains(r.err, "mimo_endpoint_c25_snr20.csv"));
   BOOST_CHECK(contains(r.err, "4096"));
@@ -181,7 +176,7 @@ BOOST_AUTO_TEST_CASE(bad_window_detrend_and_overlap_are_exit_2_naming_the_flag) 
                                                         {"--overlap", "1.5"},
                                                         {"--nfft", "1"}}) {
     const Run r =
-        stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y " + flag + " " + value, s);
+        run_stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y " + flag + " " + value, s);
     BOOST_TEST_CONTEXT(flag << " " << value) {
       BOOST_CHECK_EQUAL(r.exit_code, 2);
       BOOST_CHECK(contains(r.err, flag));
@@ -208,7 +203,7 @@ BOOST_AUTO_TEST_CASE(perfectly_coupled_inputs_are_exit_1_with_a_message_and_no_f
     }
   }
   const fs::path json = s.dir / "frf.json";
-  const Run r = stiffid(
+  const Run r = run_stiffid(
       "\"" + csv.string() + "\" --inputs fx,fy --outputs x,y -o \"" + json.string() + "\"", s);
   BOOST_CHECK_EQUAL(r.exit_code, 1);
   BOOST_CHECK(contains(r.err, "perfectly coupled"));

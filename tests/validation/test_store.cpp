@@ -8,22 +8,13 @@
 
 #include "data/error.hpp"
 #include "validation/store.hpp"
+#include "tests/support/files.hpp"
 
 namespace v = stiffid::validation;
 namespace fs = std::filesystem;
+using stiffid::test::TempFolder;
 
 namespace {
-
-struct TempFolder {
-  fs::path path;
-  TempFolder() {
-    path = fs::temp_directory_path() / ("stiffid_test_store_" + std::to_string(getpid()));
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempFolder() { fs::remove_all(path); }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
 
 v::StoreHeader header(const std::string& hash = "00000000000000aa") {
   return {"unit", hash, "{\"name\":\"unit\"}", "test"};
@@ -57,7 +48,7 @@ int count_rows(const std::string& path, const std::string& table) {
 }  // namespace
 
 BOOST_AUTO_TEST_CASE(cells_round_trip_with_exact_values_and_64_bit_seeds) {
-  TempFolder folder;
+  TempFolder folder("store");
   const std::string path = folder.file("a.sqlite");
   {
     v::ResultStore store(path, v::ResultStore::Mode::create, header());
@@ -81,7 +72,7 @@ BOOST_AUTO_TEST_CASE(cells_round_trip_with_exact_values_and_64_bit_seeds) {
 }
 
 BOOST_AUTO_TEST_CASE(a_cell_cannot_be_written_twice_and_a_rejected_cell_leaves_nothing) {
-  TempFolder folder;
+  TempFolder folder("store");
   const std::string path = folder.file("b.sqlite");
   v::ResultStore store(path, v::ResultStore::Mode::create, header());
   store.write_cell(record(3, {{"m", 1.0}, {"n", 2.0}}));
@@ -92,7 +83,7 @@ BOOST_AUTO_TEST_CASE(a_cell_cannot_be_written_twice_and_a_rejected_cell_leaves_n
 }
 
 BOOST_AUTO_TEST_CASE(failed_cells_are_stored_without_metrics) {
-  TempFolder folder;
+  TempFolder folder("store");
   v::ResultStore store(folder.file("c.sqlite"), v::ResultStore::Mode::create, header());
   v::CellRecord failed = record(7, {});
   failed.ok = false;
@@ -107,7 +98,7 @@ BOOST_AUTO_TEST_CASE(failed_cells_are_stored_without_metrics) {
 }
 
 BOOST_AUTO_TEST_CASE(resuming_checks_the_spec_hash_and_creating_replaces) {
-  TempFolder folder;
+  TempFolder folder("store");
   const std::string path = folder.file("d.sqlite");
   {
     v::ResultStore store(path, v::ResultStore::Mode::create, header());
@@ -127,7 +118,7 @@ BOOST_AUTO_TEST_CASE(resuming_checks_the_spec_hash_and_creating_replaces) {
 }
 
 BOOST_AUTO_TEST_CASE(merge_copies_missing_cells_and_keeps_present_ones) {
-  TempFolder folder;
+  TempFolder folder("store");
   const std::string main_path = folder.file("main.sqlite");
   const std::string part_path = folder.file("main.sqlite.rank1");
   v::ResultStore main_store(main_path, v::ResultStore::Mode::create, header());

@@ -9,29 +9,14 @@
 #include "data/error.hpp"
 #include "validation/progress.hpp"
 #include "validation/study.hpp"
+#include "tests/support/files.hpp"
 
 namespace v = stiffid::validation;
 namespace fs = std::filesystem;
+using stiffid::test::TempFolder;
+using stiffid::test::read_text;
 
 namespace {
-
-struct TempFolder {
-  fs::path path;
-  TempFolder() {
-    path = fs::temp_directory_path() / ("stiffid_test_study_" + std::to_string(getpid()));
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempFolder() { fs::remove_all(path); }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 // Two designs, factors of three JSON types, 3 replicates: 2*3*3 + 2*3 = 24 cells.
 const char* kSpec = R"({
@@ -130,7 +115,7 @@ BOOST_AUTO_TEST_CASE(spec_errors_name_the_place) {
 }
 
 BOOST_AUTO_TEST_CASE(results_are_bit_identical_at_one_and_two_threads) {
-  TempFolder folder;
+  TempFolder folder("study");
   const v::StudySpec spec = v::parse_study_spec(kSpec, "unit.json");
   const auto one = run(spec, folder.file("one.sqlite"), 1);
   const auto two = run(spec, folder.file("two.sqlite"), 2);
@@ -147,7 +132,7 @@ BOOST_AUTO_TEST_CASE(results_are_bit_identical_at_one_and_two_threads) {
 }
 
 BOOST_AUTO_TEST_CASE(resume_computes_only_missing_cells_and_changes_nothing_stored) {
-  TempFolder folder;
+  TempFolder folder("study");
   const v::StudySpec spec = v::parse_study_spec(kSpec, "unit.json");
   run(spec, folder.file("full.sqlite"), 2);
   // A partial store: the same study with only design "a" run (its cells 0..17 have the same
@@ -190,7 +175,7 @@ BOOST_AUTO_TEST_CASE(synthetic_replicates_estimate_the_known_mean_and_sd) {
   // 2/sqrt(50*200) = 0.02, so |error| < 0.1 is a 5-sigma bound; the mean sample SD is within
   // a few percent of 2 (SE of one sample SD ~ 2/sqrt(98) = 0.2, over 200 replicates ~0.014; the
   // bias of the SD estimator at n = 50 is ~0.5 %), so |error| < 0.1 is again about 5 sigma.
-  TempFolder folder;
+  TempFolder folder("study");
   const auto spec = v::parse_study_spec(R"({"name": "stat", "seed": 3, "replicates": 200,
       "designs": [{"name": "d", "evaluator": "synthetic",
                    "template": {"mean": 10, "sd": 2, "samples": 50}}]})",
@@ -219,7 +204,7 @@ BOOST_AUTO_TEST_CASE(summary_mean_and_sd_match_hand_values) {
 }
 
 BOOST_AUTO_TEST_CASE(failed_cells_are_reported_and_bad_specs_stop_the_run) {
-  TempFolder folder;
+  TempFolder folder("study");
   const auto failing = v::parse_study_spec(R"({"name": "f", "designs": [{"name": "d",
       "evaluator": "synthetic", "factors": {"fail": [false, true]},
       "template": {"fail": "${fail}"}}]})",

@@ -14,28 +14,13 @@
 #include <iostream>
 #include <sstream>
 #include <thread>
+#include "tests/support/files.hpp"
 
 namespace fs = std::filesystem;
+using stiffid::test::TempFolder;
+using stiffid::test::read_text;
 
 namespace {
-
-struct TempFolder {
-  fs::path path;
-  TempFolder() {
-    path = fs::temp_directory_path() / ("stiffid_test_study_cli_" + std::to_string(getpid()));
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempFolder() { fs::remove_all(path); }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
@@ -77,7 +62,7 @@ int line_count(const std::string& text) {
 }  // namespace
 
 BOOST_AUTO_TEST_CASE(killed_study_resumes_to_the_same_table_without_duplicates) {
-  TempFolder folder;
+  TempFolder folder("study_cli");
   const std::string spec = folder.file("slow.json");
   write_text(spec, slow_spec(60));
   const std::string binary = STIFFID_BINARY;
@@ -125,7 +110,7 @@ BOOST_AUTO_TEST_CASE(killed_study_resumes_to_the_same_table_without_duplicates) 
 }
 
 BOOST_AUTO_TEST_CASE(exit_codes_follow_the_error_tiers) {
-  TempFolder folder;
+  TempFolder folder("study_cli");
   const std::string binary = STIFFID_BINARY;
   write_text(folder.file("bad.json"), R"({"name": "bad", "designs": [{"name": "d",
     "evaluator": "synthetic", "template": {"samples": -3}}]})");

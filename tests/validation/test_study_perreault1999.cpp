@@ -10,18 +10,13 @@
 #include "data/error.hpp"
 #include "models/arm.hpp"
 #include "validation/perreault1999.hpp"
+#include "tests/support/files.hpp"
 
 namespace v = stiffid::validation;
 namespace fs = std::filesystem;
+using stiffid::test::read_text;
 
 namespace {
-
-std::string read_text(const std::string& path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 Eigen::MatrixXd matrix(const nlohmann::json& rows) {
   Eigen::MatrixXd m(rows.size(), rows[0].size());
@@ -160,13 +155,10 @@ BOOST_AUTO_TEST_CASE(report_puts_the_paper_values_beside_ours) {
                     level25[m]});
   }
   v::StudySpec spec = v::load_study("perreault1999");
-  const fs::path folder =
-      fs::temp_directory_path() / ("stiffid_test_report_" + std::to_string(getpid()));
-  fs::create_directories(folder);
-  v::write_perreault1999_report(spec, rows, folder.string());
-  const std::string csv = read_text((folder / "table1_coupling.csv").string());
-  const std::string md = read_text((folder / "report.md").string());
-  fs::remove_all(folder);
+  const stiffid::test::TempFolder folder("report");
+  v::write_perreault1999_report(spec, rows, folder.path.string());
+  const std::string csv = read_text(folder.file("table1_coupling.csv"));
+  const std::string md = read_text(folder.file("report.md"));
   std::istringstream lines(csv);
   std::string header, row0, row25;
   std::getline(lines, header);
@@ -185,17 +177,13 @@ BOOST_AUTO_TEST_CASE(the_builtin_study_meets_every_criterion_of_the_issue) {
   // R2 within 1 point and IRF VAFs >= paper - 1, Table 2 within 2 points, Fig 6B R2 >= 98.5 and
   // VAF >= 99, Fig 9 coherence increasing with the segment length. The paper's values are the
   // truth; the report computes the verdict from the store.
-  const fs::path folder =
-      fs::temp_directory_path() / ("stiffid_test_p99_" + std::to_string(getpid()));
-  fs::create_directories(folder);
+  const stiffid::test::TempFolder folder("p99");
   const std::string command = std::string(STIFFID_BINARY) + " study perreault1999 --store " +
-                              (folder / "p.sqlite").string() + " --report " +
-                              (folder / "report").string() + " > " +
-                              (folder / "log.txt").string() + " 2>&1";
+                              folder.file("p.sqlite") + " --report " + folder.file("report") +
+                              " > " + folder.file("log.txt") + " 2>&1";
   const int status = std::system(command.c_str());
-  const std::string md = read_text((folder / "report" / "report.md").string());
-  const std::string log = read_text((folder / "log.txt").string());
-  fs::remove_all(folder);
+  const std::string md = read_text(folder.path / "report" / "report.md");
+  const std::string log = read_text(folder.file("log.txt"));
   BOOST_REQUIRE_MESSAGE(status == 0, "stiffid study failed: " + log);
   BOOST_TEST_MESSAGE(md);
   BOOST_CHECK(md.find("All criteria met: yes") != std::string::npos);
