@@ -11,7 +11,7 @@
 #include <random>
 #include <set>
 #include <sstream>
-#include "tests/support/files.hpp"
+#include "tests/support/support.hpp"
 
 namespace fs = std::filesystem;
 using stiffid::test::read_text;

@@ -15,6 +15,7 @@
 #include "validation/anova.hpp"
 #include "validation/anova_detail.hpp"
 #include "validation/anova_report.hpp"
+#include "tests/support/support.hpp"
 
 namespace v = stiffid::validation;
 namespace d = stiffid::data;
@@ -156,17 +157,7 @@ v::LongTable one_factor_table(const std::vector<std::vector<double>>& y) {
   return t;
 }
 
-void expect_input_error(const std::function<void()>& f, const std::vector<std::string>& parts) {
-  try {
-    f();
-    BOOST_ERROR("no InputError");
-  } catch (const stiffid::InputError& e) {
-    for (const auto& p : parts) {
-      BOOST_CHECK_MESSAGE(std::string(e.what()).find(p) != std::string::npos,
-                          "'" << e.what() << "' lacks '" << p << "'");
-    }
-  }
-}
+using stiffid::test::expect_input_error;
 
 }  // namespace
 

@@ -12,6 +12,7 @@
 #include "data/error.hpp"
 #include "validation/anova.hpp"
 #include "validation/anova_report.hpp"
+#include "tests/support/support.hpp"
 
 namespace v = stiffid::validation;
 namespace d = stiffid::data;
@@ -89,17 +90,7 @@ std::vector<std::string> check(const std::string& dataset, const std::string& mo
   return negative;
 }
 
-void expect_input_error(const std::function<void()>& f, const std::vector<std::string>& parts) {
-  try {
-    f();
-    BOOST_ERROR("no InputError");
-  } catch (const stiffid::InputError& e) {
-    for (const auto& p : parts) {
-      BOOST_CHECK_MESSAGE(std::string(e.what()).find(p) != std::string::npos,
-                          "'" << e.what() << "' lacks '" << p << "'");
-    }
-  }
-}
+using stiffid::test::expect_input_error;
 
 v::LongTable table_from(const std::string& csv) {
   return v::long_table_from_csv(d::parse_csv(csv, "r.csv"), "err", {"a", "b"});

@@ -8,7 +8,7 @@
 
 #include "data/error.hpp"
 #include "validation/store.hpp"
-#include "tests/support/files.hpp"
+#include "tests/support/support.hpp"
 
 namespace v = stiffid::validation;
 namespace fs = std::filesystem;

@@ -9,7 +9,7 @@
 #include "data/error.hpp"
 #include "validation/progress.hpp"
 #include "validation/study.hpp"
-#include "tests/support/files.hpp"
+#include "tests/support/support.hpp"
 
 namespace v = stiffid::validation;
 namespace fs = std::filesystem;

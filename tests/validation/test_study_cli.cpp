@@ -14,7 +14,7 @@
 #include <iostream>
 #include <sstream>
 #include <thread>
-#include "tests/support/files.hpp"
+#include "tests/support/support.hpp"
 
 namespace fs = std::filesystem;
 using stiffid::test::TempFolder;

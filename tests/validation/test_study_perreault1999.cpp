@@ -10,7 +10,7 @@
 #include "data/error.hpp"
 #include "models/arm.hpp"
 #include "validation/perreault1999.hpp"
-#include "tests/support/files.hpp"
+#include "tests/support/support.hpp"
 
 namespace v = stiffid::validation;
 namespace fs = std::filesystem;

@@ -1,14 +1,19 @@
 #pragma once
 // Test support shared by the test programs: a scratch folder that is removed when the test ends,
-// and whole-file reading that gives "" for a file that is missing (so a failed run reports its
-// own message instead of an exception from the reader).
+// whole-file reading that gives "" for a file that is missing (so a failed run reports its own
+// message instead of an exception from the reader), and a check on InputError messages.
 
 #include <unistd.h>
 
+#include <boost/test/unit_test.hpp>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
+#include <vector>
+
+#include "data/error.hpp"
 
 namespace stiffid::test {
 
@@ -33,6 +38,20 @@ inline std::string read_text(const std::filesystem::path& path) {
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
+}
+
+/// Checks that `f` throws InputError and that its message holds every one of `parts`.
+inline void expect_input_error(const std::function<void()>& f,
+                               const std::vector<std::string>& parts) {
+  try {
+    f();
+    BOOST_ERROR("no InputError");
+  } catch (const stiffid::InputError& e) {
+    for (const auto& p : parts) {
+      BOOST_CHECK_MESSAGE(std::string(e.what()).find(p) != std::string::npos,
+                          "'" << e.what() << "' lacks '" << p << "'");
+    }
+  }
 }
 
 }  // namespace stiffid::test
