@@ -27,7 +27,8 @@ std::string to_string(TfaMethod method) {
 
 namespace {
 
-// Inertia M(theta_0(t)) of the unperturbed posture at each time, kg m^2.
+// Inertia M(theta_0(t)) of the unperturbed posture at each time (the nearest input sample),
+// kg m^2. Both methods: frame centres (spectrogram) and fitted samples (modal).
 std::vector<Eigen::MatrixXd> inertia_at(const DeviationResult& dev,
                                         const models::ArmParameters& arm,
                                         const Eigen::VectorXd& time_s) {
@@ -201,15 +202,9 @@ TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
   ridge_options.modes = static_cast<int>(options.deviation.angle_channels.size());
   r.ridges = track_ridges(r.spectrogram, ridge_options);
 
-  std::vector<Eigen::MatrixXd> inertia;
-  inertia.reserve(r.spectrogram.frames());
-  for (int m = 0; m < r.spectrogram.frames(); ++m) {
-    const int row = std::min(static_cast<int>(dev.posture_rad.rows()) - 1,
-                             r.spectrogram.centre(m) * d);
-    const Eigen::Vector2d theta = dev.posture_rad.row(row).transpose();
-    inertia.push_back(models::inertia_matrix(options.arm, theta));
-  }
-  r.modal = modal_analysis(r.ridges, inertia, options.modal);
+  // Frame centres are whole input samples (centre * D), so the posture row is exact.
+  r.modal = modal_analysis(r.ridges, inertia_at(dev, options.arm, r.spectrogram.time_s),
+                           options.modal);
   r.force = normalized_force(r.ridges, r.modal);
   r.status = r.modal.status;
   return r;
