@@ -230,24 +230,25 @@ LumpedFitResult fit_frf(const FrfTarget& t, const FrfFitOptions& o) {
     scale(j) = std::sqrt(scale(j) / static_cast<double>(used.size()));
     if (!(scale(j) > 0.0)) throw InputError(t.source + ": output " + t.outputs[j] + " has a zero FRF");
   }
-  std::vector<Eigen::VectorXd> weights;
+  // One residual term per used frequency, built once for the finiteness check of the starts,
+  // every local solve and the covariance.
+  std::vector<FrequencyResidual> residuals;
   for (int k : used) {
     Eigen::VectorXd w(n);
     for (int j = 0; j < n; ++j) {
       const double c = t.coherence(k, j);
       w(j) = c >= o.min_coherence ? std::sqrt(std::min(1.0, c)) / scale(j) : 0.0;
     }
-    weights.push_back(w);
+    residuals.push_back({o.model, n, 2.0 * M_PI * t.frequency_hz(k), t.compliance[k], w});
   }
   std::map<std::string, StartRange> ranges = default_frf_ranges(o.model, t, o);
   for (const auto& [name, r] : o.ranges) ranges[name] = r;
   const int p = theta_size(o.model, n);
 
   auto build = [&](ceres::Problem& problem, Eigen::VectorXd& theta) {
-    for (std::size_t u = 0; u < used.size(); ++u) {
-      const int k = used[u];
-      auto* cost = new ceres::DynamicAutoDiffCostFunction<FrequencyResidual, 8>(new FrequencyResidual{
-          o.model, n, 2.0 * M_PI * t.frequency_hz(k), t.compliance[k], weights[u]});
+    for (const FrequencyResidual& term : residuals) {
+      auto* cost = new ceres::DynamicAutoDiffCostFunction<FrequencyResidual, 8>(
+          new FrequencyResidual(term));
       cost->AddParameterBlock(p);
       cost->SetNumResiduals(2 * n * n);
       problem.AddResidualBlock(cost, nullptr, theta.data());
@@ -260,10 +261,8 @@ LumpedFitResult fit_frf(const FrfTarget& t, const FrfFitOptions& o) {
   auto finite_at = [&](const Eigen::VectorXd& theta) {
     std::vector<double> r(2 * n * n);
     const double* blocks[] = {theta.data()};
-    for (std::size_t u = 0; u < used.size(); ++u) {
-      const FrequencyResidual f{o.model, n, 2.0 * M_PI * t.frequency_hz(used[u]),
-                                t.compliance[used[u]], weights[u]};
-      if (!f(blocks, r.data())) return false;
+    for (const FrequencyResidual& term : residuals) {
+      if (!term(blocks, r.data())) return false;
     }
     return true;
   };
@@ -307,21 +306,24 @@ LumpedFitResult fit_frf(const FrfTarget& t, const FrfFitOptions& o) {
   // Fit quality per output over the used frequencies.
   result.vaf_percent.resize(n);
   result.residual_rms_m.resize(n);
-  for (int j = 0; j < n; ++j) {
-    double error = 0.0, total = 0.0, squared = 0.0;
-    int count = 0;
-    for (std::size_t u = 0; u < used.size(); ++u) {
-      const int k = used[u];
-      if (weights[u](j) == 0.0) continue;
-      const Eigen::MatrixXcd h = model_compliance(o.model, result.theta, n, t.frequency_hz(k));
-      const double w = weights[u](j) * weights[u](j);
-      error += w * (h.row(j) - t.compliance[k].row(j)).squaredNorm();
-      total += w * t.compliance[k].row(j).squaredNorm();
-      squared += (h.row(j) - t.compliance[k].row(j)).squaredNorm();
-      count += n;
+  Eigen::VectorXd error = Eigen::VectorXd::Zero(n), total = Eigen::VectorXd::Zero(n),
+                  squared = Eigen::VectorXd::Zero(n), count = Eigen::VectorXd::Zero(n);
+  for (const FrequencyResidual& term : residuals) {
+    const Eigen::MatrixXcd h =
+        model_compliance(o.model, result.theta, n, term.omega / (2.0 * M_PI));
+    for (int j = 0; j < n; ++j) {
+      if (term.weight(j) == 0.0) continue;
+      const double w = term.weight(j) * term.weight(j);
+      const double e2 = (h.row(j) - term.measured.row(j)).squaredNorm();
+      error(j) += w * e2;
+      total(j) += w * term.measured.row(j).squaredNorm();
+      squared(j) += e2;
+      count(j) += n;
     }
-    result.vaf_percent(j) = total > 0.0 ? 100.0 * (1.0 - error / total) : std::nan("");
-    result.residual_rms_m(j) = count > 0 ? std::sqrt(squared / count) : std::nan("");
+  }
+  for (int j = 0; j < n; ++j) {
+    result.vaf_percent(j) = total(j) > 0.0 ? 100.0 * (1.0 - error(j) / total(j)) : std::nan("");
+    result.residual_rms_m(j) = count(j) > 0 ? std::sqrt(squared(j) / count(j)) : std::nan("");
   }
   ceres::Problem problem;
   Eigen::VectorXd theta = result.theta;
