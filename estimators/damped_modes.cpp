@@ -390,19 +390,28 @@ double choose_shape_weight(const VpProblem& problem, const Eigen::VectorXd& thet
   return best;
 }
 
-// Effective number of parameters of a converged fit: the trace of the linearized influence of the
-// track coefficients (data rows of the Jacobian against data + prior rows) plus the number of
-// linear parameters.
-double effective_parameters(const VpProblem& problem, const Eigen::VectorXd& theta) {
+// Size of a converged fit: the whitened residual sum of squares of the data rows and, when asked,
+// the effective number of parameters (trace of the linearized influence of the track
+// coefficients, data rows of the Jacobian against data + prior rows, plus the number of linear
+// parameters), from one evaluation. False when the model cannot be evaluated at theta.
+bool fit_size(const VpProblem& problem, const Eigen::VectorXd& theta, bool with_dof, double& rss,
+              double& dof) {
   Eigen::VectorXd residual(problem.residuals());
-  RowMajor jacobian(problem.residuals(), problem.parameters());
-  if (!problem.evaluate(theta.data(), residual.data(), jacobian.data(), nullptr)) {
-    return problem.parameters() + problem.linear();
+  RowMajor jacobian;
+  if (with_dof) jacobian.resize(problem.residuals(), problem.parameters());
+  if (!problem.evaluate(theta.data(), residual.data(), with_dof ? jacobian.data() : nullptr,
+                        nullptr)) {
+    return false;
   }
-  const Eigen::MatrixXd jd = jacobian.topRows(problem.data_rows());
-  const Eigen::MatrixXd normal = jacobian.transpose() * jacobian;  // data + prior rows
-  return Eigen::LDLT<Eigen::MatrixXd>(normal).solve(jd.transpose() * jd).trace() +
-         problem.linear();
+  rss = residual.head(problem.data_rows()).squaredNorm();
+  dof = 0.0;
+  if (with_dof) {
+    const Eigen::MatrixXd jd = jacobian.topRows(problem.data_rows());
+    const Eigen::MatrixXd normal = jacobian.transpose() * jacobian;  // data + prior rows
+    dof = Eigen::LDLT<Eigen::MatrixXd>(normal).solve(jd.transpose() * jd).trace() +
+          problem.linear();
+  }
+  return true;
 }
 
 // Orthonormal basis (C x C) whose first column is u / |u| (complex Householder completion).
@@ -467,11 +476,9 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     const StageOutcome o = solve(*problem, candidate, options.max_iterations);
     result.iterations += o.iterations;
     if (!o.usable) break;
-    Eigen::VectorXd residual(problem->residuals());
-    if (!problem->evaluate(candidate.data(), residual.data(), nullptr, nullptr)) break;
+    double rss = 0.0, dof = 0.0;
+    if (!fit_size(*problem, candidate, grid.size() > 1, rss, dof)) break;
     const double rows = problem->data_rows();
-    const double rss = residual.head(problem->data_rows()).squaredNorm();
-    const double dof = grid.size() > 1 ? effective_parameters(*problem, candidate) : 0.0;
     if (stage1) {
       const double variance = rss / std::max(1.0, rows - dof);
       if (previous_rss - rss <= std::log(rows) * (dof - previous_dof) * variance) break;
