@@ -52,9 +52,10 @@ std::vector<std::string> split_line(const std::string& line) {
   return out;
 }
 
-bool skipped(const std::string& line) {
-  const std::string t = trim(line);
-  return t.empty() || t[0] == '#';
+// A blank line or a comment (first non-blank character '#').
+bool skipped(std::string_view line) {
+  const auto first = line.find_first_not_of(" \t\r");
+  return first == std::string_view::npos || line[first] == '#';
 }
 
 // Splits a header cell "name[unit]" or "name (unit)" into name and unit.
@@ -89,16 +90,15 @@ double parse_number(std::string_view text, const std::string& source, int line, 
   double value = 0.0;
   const char* end = text.data() + text.size();
   const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+  if (!text.empty() && ec == std::errc() && ptr == end && std::isfinite(value)) return value;
+  // The location is spelled out only on failure: this runs for every cell of a long trial.
   const std::string where = source + ":" + std::to_string(line) + ":" + std::to_string(col + 1);
   if (text.empty() || ec != std::errc() || ptr != end) {
     throw InputError(where + ": column '" + column + "': expected a number, got '" +
                      std::string(text) + "'");
   }
-  if (!std::isfinite(value)) {
-    throw InputError(where + ": column '" + column + "': expected a finite number, got '" +
-                     std::string(text) + "'");
-  }
-  return value;
+  throw InputError(where + ": column '" + column + "': expected a finite number, got '" +
+                   std::string(text) + "'");
 }
 
 
@@ -196,7 +196,7 @@ NumericCsv parse_numeric(const std::string& text, const std::string& source) {
     const std::string_view row(text.data() + pos, eol - pos);
     pos = eol + 1;
     ++line;
-    if (skipped(std::string(row.substr(0, std::min<size_t>(row.size(), 64))))) continue;
+    if (skipped(row)) continue;
     if (out.header.empty()) {
       out.header = split_line(std::string(row));
       check_header(out.header, source, line);
