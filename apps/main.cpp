@@ -3,9 +3,11 @@
 #include <iostream>
 
 #include "apps/commands.hpp"
+#include "data/allocator.hpp"
 #include "data/error.hpp"
 
 int main(int argc, char** argv) {
+  stiffid::data::keep_large_blocks_for_reuse();
   // Ceres logs through glog; its per-step diagnostics (e.g. a rejected start of a multi-start whose
   // model overflows) are not for the user, who gets the fit's status and termination instead.
   FLAGS_logtostderr = true;

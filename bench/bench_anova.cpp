@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "data/allocator.hpp"
 #include "validation/anova.hpp"
 
 namespace v = stiffid::validation;
@@ -40,6 +41,7 @@ v::LongTable synthetic_design(std::mt19937_64& rng) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  stiffid::data::keep_large_blocks_for_reuse();  // as the stiffid program does
   const int repeats = argc > 1 ? std::max(1, std::atoi(argv[1])) : 200;
   std::mt19937_64 rng(20120330);
   const v::LongTable table = synthetic_design(rng);

@@ -19,6 +19,7 @@
 #include <random>
 #include <string>
 
+#include "data/allocator.hpp"
 #include "data/csv.hpp"
 #include "fitting/lumped_fit.hpp"
 #include "fitting/regression.hpp"
@@ -179,6 +180,7 @@ int regress(const fs::path& dir) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  stiffid::data::keep_large_blocks_for_reuse();  // as the stiffid program does
   const std::string usage =
       "usage: bench_fit make DIR [duration_s] [rate_hz] | fit DIR [kv|pt|duffing|all] [segment_s]"
       " | regress DIR\n";

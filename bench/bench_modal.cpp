@@ -18,6 +18,7 @@
 #include <random>
 #include <vector>
 
+#include "data/allocator.hpp"
 #include "estimators/damped_modes.hpp"
 #include "estimators/modal_parameters.hpp"
 #include "models/arm.hpp"
@@ -54,6 +55,7 @@ Eigen::MatrixXd trial(const Eigen::Matrix2d& m, const Eigen::Matrix2d& k, const 
 }  // namespace
 
 int main(int argc, char** argv) {
+  stiffid::data::keep_large_blocks_for_reuse();  // as the stiffid program does
   const int repeats = argc > 1 ? std::max(1, std::atoi(argv[1])) : 1;
   const double rate_hz = 4000.0;
   const stiffid::models::ArmParameters arm;

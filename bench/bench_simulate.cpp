@@ -12,6 +12,7 @@
 #include <random>
 #include <vector>
 
+#include "data/allocator.hpp"
 #include "models/presets.hpp"
 
 namespace {
@@ -30,6 +31,7 @@ double median_ms(int repetitions, const std::function<void()>& run) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  stiffid::data::keep_large_blocks_for_reuse();  // as the stiffid program does
   using namespace stiffid::models;
   const int repetitions = argc > 1 ? std::max(1, std::atoi(argv[1])) : 21;
   const TrialSpec arm = piovesan_impulse_trial(TaskKind::posture, ProfileKind::constant,

@@ -9,9 +9,11 @@
 #include <filesystem>
 #include <string>
 
+#include "data/allocator.hpp"
 #include "validation/study.hpp"
 
 int main(int argc, char** argv) {
+  stiffid::data::keep_large_blocks_for_reuse();  // as the stiffid program does
   namespace v = stiffid::validation;
   try {
     v::StudySpec spec = v::load_study(argc > 1 ? argv[1] : "perreault1999");
