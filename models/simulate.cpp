@@ -175,6 +175,8 @@ struct ArmSystem {
   ReferencePoint fixed_reference;
   double branch = 0.0;
   long* evaluations;
+  InertiaConstants inertia;                // of *arm, eq 9
+  Eigen::Vector2d fixed_reference_torque;  // reference_torque(fixed_reference), N m
 
   ReferencePoint reference(double t) const {
     return posture ? fixed_reference : arm_reference(*arm, *task, duration_s, t);
@@ -196,26 +198,45 @@ struct ArmSystem {
     return f;
   }
 
+  // Reference-side torque M(theta_ref) theta_ref'' + H(theta_ref, theta_ref') theta_ref', N m: the
+  // feedforward that keeps the unperturbed arm on its path; constant (zero) at a posture.
+  Eigen::Vector2d reference_torque(const ReferencePoint& ref) const {
+    return inertia_matrix(*arm, ref.theta_rad) * ref.theta_ddot_rad_per_s2 +
+           coriolis_matrix(*arm, ref.theta_rad, ref.theta_dot_rad_per_s) * ref.theta_dot_rad_per_s;
+  }
+
+  // Each trigonometric function of the actual angles is evaluated once per call (M, H and J share
+  // them; this is the simulator's inner loop), and the posture's reference torque once per trial.
   void operator()(const ArmState& s, ArmState& ds, double t) const {
     ++*evaluations;
     const ReferencePoint ref = reference(t);
     const Eigen::Vector2d d(s[0], s[1]), dd(s[2], s[3]), z(s[4], s[5]);
     const Eigen::Vector2d theta = ref.theta_rad + d;
     const Eigen::Vector2d theta_dot = ref.theta_dot_rad_per_s + dd;
-    const Eigen::Matrix2d m = inertia_matrix(*arm, theta);
-    Eigen::Vector2d rhs = (inertia_matrix(*arm, ref.theta_rad) - m) * ref.theta_ddot_rad_per_s2 +
-                          coriolis_matrix(*arm, ref.theta_rad, ref.theta_dot_rad_per_s) *
-                              ref.theta_dot_rad_per_s -
-                          coriolis_matrix(*arm, theta, theta_dot) * theta_dot +
+    const double c2 = std::cos(theta(1)), s2 = std::sin(theta(1));
+    Eigen::Matrix2d m;  // eq 9
+    m << inertia.kappa + 2.0 * inertia.beta * c2, inertia.chi + inertia.beta * c2,
+        inertia.chi + inertia.beta * c2, inertia.chi;
+    const double bs2 = inertia.beta * s2;  // H(theta, theta') theta', eq 9
+    const Eigen::Vector2d coriolis(-bs2 * (2.0 * theta_dot(0) + theta_dot(1)) * theta_dot(1),
+                                   bs2 * theta_dot(0) * theta_dot(0));
+    Eigen::Vector2d rhs = (posture ? fixed_reference_torque : reference_torque(ref)) -
+                          m * ref.theta_ddot_rad_per_s2 - coriolis +
                           element.force(t, branch, d, dd, z);
     if (forcing->pulses.size() + forcing->ramps.size() > 0 || forcing->random.rows() > 0) {
-      rhs += jacobian(*arm, theta).transpose() * hand_force(t, ref, theta, theta_dot);
+      const double s1 = std::sin(theta(0)), c1 = std::cos(theta(0));
+      const double s12 = s1 * c2 + c1 * s2, c12 = c1 * c2 - s1 * s2;
+      Eigen::Matrix2d j;  // hand Jacobian
+      j << -arm->l1_m * s1 - arm->l2_m * s12, -arm->l2_m * s12, arm->l1_m * c1 + arm->l2_m * c12,
+          arm->l2_m * c12;
+      rhs += j.transpose() * hand_force(t, ref, theta, theta_dot);
     }
-    const Eigen::Vector2d acc = m.llt().solve(rhs);
+    // M is symmetric positive definite (checked by TrialSpec::validate): Cramer's rule.
+    const double inverse_det = 1.0 / (m(0, 0) * m(1, 1) - m(0, 1) * m(0, 1));
     ds[0] = dd(0);
     ds[1] = dd(1);
-    ds[2] = acc(0);
-    ds[3] = acc(1);
+    ds[2] = (m(1, 1) * rhs(0) - m(0, 1) * rhs(1)) * inverse_det;
+    ds[3] = (m(0, 0) * rhs(1) - m(0, 1) * rhs(0)) * inverse_det;
     if (element.kind == ElementKind::poynting_thomson) {
       const Eigen::Vector2d zr = element.internal_rate(t, branch, d, z);
       ds[4] = zr(0);
@@ -407,8 +428,10 @@ SimulationResult simulate_arm(const TrialSpec& spec, std::mt19937_64& rng) {
 
   const Forcing forcing = make_forcing(spec, 2, samples, rng, truth);
   ArmSystem system{&spec.arm, &spec.task, spec.duration_s, ElementEval<2>(spec.joint), &forcing,
-                   spec.task.kind == TaskKind::posture, {}, 0.0, &result.rhs_evaluations};
+                   spec.task.kind == TaskKind::posture, {}, 0.0, &result.rhs_evaluations,
+                   inertia_constants(spec.arm), Eigen::Vector2d::Zero()};
   system.fixed_reference = arm_reference(spec.arm, spec.task, spec.duration_s, 0.0);
+  system.fixed_reference_torque = system.reference_torque(system.fixed_reference);
 
   ArmState x0{};
   for (int i = 0; i < 2; ++i) {
