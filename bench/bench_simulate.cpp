@@ -51,8 +51,8 @@ int main(int argc, char** argv) {
     std::mt19937_64 rng(1);
     simulate(endpoint, rng);
   });
-  std::printf("piovesan_arm_impulse_5s_4khz  median %.3f ms  (%ld dopri5 steps)\n", t_arm, steps_arm);
-  std::printf("perreault_arm_stochastic_60s_50hz  median %.3f ms  (%ld dopri5 steps)\n", t_stochastic,
+  std::printf("piovesan_arm_impulse_5s_4khz  median %.3f ms  (%ld steps)\n", t_arm, steps_arm);
+  std::printf("perreault_arm_stochastic_60s_50hz  median %.3f ms  (%ld steps)\n", t_stochastic,
               steps_stochastic);
   std::printf("perreault_endpoint_60s_50hz_exact  median %.3f ms\n", t_endpoint);
   return 0;

@@ -165,6 +165,25 @@ std::vector<double> segment_bounds(double t_end, std::vector<double> inner, bool
 // perturbation, so the unperturbed trajectory is exact. State: [d(2), d'(2), z(2)].
 using ArmState = std::array<double, 6>;
 
+// cos and sin of a + d from those of a, with d a small deviation: for |d| <= 1/16 rad the Taylor
+// polynomials (sin to d^9, cos to d^10; remainders below 1e-20 relative) replace the library
+// calls, which dominated the arm's right-hand side; larger d takes std::cos/std::sin of a + d.
+void cos_sin_of_sum(double a, double cos_a, double sin_a, double d, double& cos_out,
+                    double& sin_out) {
+  if (!(std::abs(d) <= 0.0625)) {
+    cos_out = std::cos(a + d);
+    sin_out = std::sin(a + d);
+    return;
+  }
+  const double d2 = d * d;
+  const double sin_d =
+      d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0 * (1.0 - d2 / 72.0))));
+  const double cos_d =
+      1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0 * (1.0 - d2 / 90.0))));
+  cos_out = cos_a * cos_d - sin_a * sin_d;
+  sin_out = sin_a * cos_d + cos_a * sin_d;
+}
+
 struct ArmSystem {
   const ArmParameters* arm;
   const ArmTask* task;
@@ -177,6 +196,7 @@ struct ArmSystem {
   long* evaluations;
   InertiaConstants inertia;                // of *arm, eq 9
   Eigen::Vector2d fixed_reference_torque;  // reference_torque(fixed_reference), N m
+  Eigen::Array2d reference_cos, reference_sin;  // of fixed_reference.theta_rad
 
   ReferencePoint reference(double t) const {
     return posture ? fixed_reference : arm_reference(*arm, *task, duration_s, t);
@@ -206,14 +226,24 @@ struct ArmSystem {
   }
 
   // Each trigonometric function of the actual angles is evaluated once per call (M, H and J share
-  // them; this is the simulator's inner loop), and the posture's reference torque once per trial.
+  // them; this is the simulator's inner loop; at a posture from the fixed reference's by the sum
+  // formulas), and the posture's reference torque once per trial.
   void operator()(const ArmState& s, ArmState& ds, double t) const {
     ++*evaluations;
     const ReferencePoint ref = reference(t);
     const Eigen::Vector2d d(s[0], s[1]), dd(s[2], s[3]), z(s[4], s[5]);
     const Eigen::Vector2d theta = ref.theta_rad + d;
     const Eigen::Vector2d theta_dot = ref.theta_dot_rad_per_s + dd;
-    const double c2 = std::cos(theta(1)), s2 = std::sin(theta(1));
+    double c1, s1, c2, s2;
+    if (posture) {  // theta = theta_ref + d with theta_ref fixed: cos/sin of the sums
+      cos_sin_of_sum(ref.theta_rad(0), reference_cos(0), reference_sin(0), d(0), c1, s1);
+      cos_sin_of_sum(ref.theta_rad(1), reference_cos(1), reference_sin(1), d(1), c2, s2);
+    } else {
+      c1 = std::cos(theta(0));
+      s1 = std::sin(theta(0));
+      c2 = std::cos(theta(1));
+      s2 = std::sin(theta(1));
+    }
     Eigen::Matrix2d m;  // eq 9
     m << inertia.kappa + 2.0 * inertia.beta * c2, inertia.chi + inertia.beta * c2,
         inertia.chi + inertia.beta * c2, inertia.chi;
@@ -224,7 +254,6 @@ struct ArmSystem {
                           m * ref.theta_ddot_rad_per_s2 - coriolis +
                           element.force(t, branch, d, dd, z);
     if (forcing->pulses.size() + forcing->ramps.size() > 0 || forcing->random.rows() > 0) {
-      const double s1 = std::sin(theta(0)), c1 = std::cos(theta(0));
       const double s12 = s1 * c2 + c1 * s2, c12 = c1 * c2 - s1 * s2;
       Eigen::Matrix2d j;  // hand Jacobian
       j << -arm->l1_m * s1 - arm->l2_m * s12, -arm->l2_m * s12, arm->l1_m * c1 + arm->l2_m * c12,
@@ -429,9 +458,11 @@ SimulationResult simulate_arm(const TrialSpec& spec, std::mt19937_64& rng) {
   const Forcing forcing = make_forcing(spec, 2, samples, rng, truth);
   ArmSystem system{&spec.arm, &spec.task, spec.duration_s, ElementEval<2>(spec.joint), &forcing,
                    spec.task.kind == TaskKind::posture, {}, 0.0, &result.rhs_evaluations,
-                   inertia_constants(spec.arm), Eigen::Vector2d::Zero()};
+                   inertia_constants(spec.arm), Eigen::Vector2d::Zero(), {}, {}};
   system.fixed_reference = arm_reference(spec.arm, spec.task, spec.duration_s, 0.0);
   system.fixed_reference_torque = system.reference_torque(system.fixed_reference);
+  system.reference_cos = system.fixed_reference.theta_rad.array().cos();
+  system.reference_sin = system.fixed_reference.theta_rad.array().sin();
 
   ArmState x0{};
   for (int i = 0; i < 2; ++i) {
@@ -460,7 +491,7 @@ SimulationResult simulate_arm(const TrialSpec& spec, std::mt19937_64& rng) {
     throw InputError(spec.source + (spec.source.empty() ? "" : ": ") +
                      "integrator.method: \"exact\" applies to linear endpoint models only");
   }
-  method = IntegratorKind::dopri5;
+  if (method == IntegratorKind::automatic) method = IntegratorKind::adaptive;
   result.integrator = method;
   result.status = integrate_segments(method, system, x0, bounds, truth.time_s, spec.integrator,
                                      record, result.steps);
@@ -551,7 +582,7 @@ SimulationResult simulate_endpoint(const TrialSpec& spec, std::mt19937_64& rng) 
   IntegratorKind method = spec.integrator.kind;
   const bool lti = is_linear_time_invariant(spec);
   if (method == IntegratorKind::automatic) {
-    method = lti ? IntegratorKind::exact : IntegratorKind::dopri5;
+    method = lti ? IntegratorKind::exact : IntegratorKind::adaptive;
   }
   result.integrator = method;
   if (method == IntegratorKind::exact) {
@@ -675,15 +706,17 @@ EndpointModel reference_endpoint_model() {
 
 IntegratorKind integrator_kind_from_name(const std::string& name, const std::string& key) {
   if (name == "automatic") return IntegratorKind::automatic;
+  if (name == "adaptive") return IntegratorKind::adaptive;
   if (name == "dopri5") return IntegratorKind::dopri5;
   if (name == "exact") return IntegratorKind::exact;
   throw InputError(key + ": unknown integrator \"" + name +
-                   "\", expected automatic, dopri5 or exact");
+                   "\", expected automatic, adaptive, dopri5 or exact");
 }
 
 std::string integrator_kind_name(IntegratorKind kind) {
   switch (kind) {
     case IntegratorKind::automatic: return "automatic";
+    case IntegratorKind::adaptive: return "adaptive";
     case IntegratorKind::dopri5: return "dopri5";
     case IntegratorKind::exact: return "exact";
   }

@@ -79,12 +79,16 @@ EndpointModel reference_endpoint_model();
 /// Integration methods. A stiff method (Boost.Odeint rosenbrock4) is not offered: it needs
 /// Boost.uBLAS, whose storage does not compile as C++20 with Boost 1.74 (std::allocator::construct
 /// was removed). The default servo (2e4 N/m, 250 N s/m against a ~1.5 kg hand: eigenvalues of a few
-/// hundred 1/s) is not stiff at the step sizes accuracy needs, so dopri5 handles it; a much stiffer
+/// hundred 1/s) is not stiff at the step sizes accuracy needs, so the explicit methods handle it; a much stiffer
 /// servo still works, with proportionally more steps.
 enum class IntegratorKind {
   automatic,    ///< exact for a linear time-invariant endpoint model driven by random forces, else
-                ///< dopri5
-  dopri5,       ///< Boost.Odeint Dormand-Prince 5(4) with dense output, error-controlled
+                ///< adaptive
+  adaptive,     ///< error-controlled Runge-Kutta per segment (see integrate.hpp): Dormand-Prince
+                ///< 5(4) with dense output on a segment with samples inside it, Runge-Kutta-
+                ///< Fehlberg 7(8) stepping exactly to the end of a segment without (e.g. between
+                ///< the samples of a first-order-hold random force)
+  dopri5,       ///< Boost.Odeint Dormand-Prince 5(4) with dense output on every segment
   exact,        ///< matrix-exponential discretization (linear time-invariant endpoint model only)
 };
 IntegratorKind integrator_kind_from_name(const std::string& name, const std::string& key);

@@ -115,19 +115,31 @@ BOOST_AUTO_TEST_CASE(linear_endpoint_matches_scipy_lsim_and_zoh) {
 }
 
 BOOST_AUTO_TEST_CASE(endpoint_ode_integration_agrees_with_exact_discretization) {
+  // Both adaptive paths against the matrix exponential: dopri5 with dense output on every
+  // segment, and the default (Fehlberg 7(8) landing on each segment end, the segments here being
+  // the sample intervals of the first-order-hold random force).
   m::TrialSpec spec = m::perreault_endpoint_trial(25.0, std::numeric_limits<double>::infinity());
   spec.duration_s = 10.0;
-  std::mt19937_64 rng_a(11), rng_b(11);
-  const m::SimulationResult exact = m::simulate(spec, rng_a);
+  std::mt19937_64 rng_exact(11);
+  const m::SimulationResult exact = m::simulate(spec, rng_exact);
   BOOST_CHECK(exact.integrator == m::IntegratorKind::exact);
-  spec.integrator.kind = m::IntegratorKind::dopri5;
-  const m::SimulationResult ode = m::simulate(spec, rng_b);
-  BOOST_REQUIRE(ode.status.ok);
-  // Same forces (same seed), up to the round-off of evaluating the linear interpolation at its
-  // knots (~1e-16 relative of ~0.5 N). Displacements ~5e-4 m; dopri5 at 1e-10 m absolute tolerance
-  // per step, ~3000 segments: well below 1e-9 m.
-  BOOST_CHECK_LT(max_abs(exact.trial.columns({"fx", "fy"}) - ode.trial.columns({"fx", "fy"})), 1e-12);
-  BOOST_CHECK_LT(max_abs(exact.trial.columns({"x", "y"}) - ode.trial.columns({"x", "y"})), 1e-9);
+  for (const m::IntegratorKind kind : {m::IntegratorKind::dopri5, m::IntegratorKind::adaptive}) {
+    spec.integrator.kind = kind;
+    std::mt19937_64 rng(11);
+    const m::SimulationResult ode = m::simulate(spec, rng);
+    BOOST_REQUIRE(ode.status.ok);
+    BOOST_CHECK(ode.integrator == kind);
+    BOOST_TEST_MESSAGE(m::integrator_kind_name(kind)
+                       << ": " << ode.steps << " steps, max |dx| = "
+                       << max_abs(exact.trial.columns({"x", "y"}) - ode.trial.columns({"x", "y"}))
+                       << " m");
+    // Same forces (same seed), up to the round-off of evaluating the linear interpolation at its
+    // knots (~1e-16 relative of ~0.5 N). Displacements ~5e-4 m; 1e-10 m absolute tolerance per
+    // step, ~500 segments: well below 1e-9 m.
+    BOOST_CHECK_LT(max_abs(exact.trial.columns({"fx", "fy"}) - ode.trial.columns({"fx", "fy"})),
+                   1e-12);
+    BOOST_CHECK_LT(max_abs(exact.trial.columns({"x", "y"}) - ode.trial.columns({"x", "y"})), 1e-9);
+  }
 }
 
 BOOST_AUTO_TEST_CASE(undamped_free_arm_conserves_kinetic_energy) {
