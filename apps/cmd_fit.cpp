@@ -2,9 +2,13 @@
 //  [--starts 16] [--seed S] [--bounds FILE] [-o OUT.json]`: lumped-model fit to a time-series trial
 // (fitting/lumped_fit.hpp);
 // `stiffid fit kv|pt --frf FRF.json [--band LO:HI] [--min-coherence 0.5] [...]`: fit to the
-// compliance estimated by `stiffid frf` (fitting/frf_fit.hpp). A fit that does not converge writes
+// compliance estimated by `stiffid frf` (fitting/frf_fit.hpp);
+// `stiffid fit kv --tfa TFA.json [--interval A:B]`: constant joint-space Kelvin-Voigt matrices
+// (I, C, K in kg m^2, N m s/rad, N m/rad) from the K(t), C(t), M(t) tracks of `stiffid tfa` over
+// the valid frames between A and B s (fitting/tfa_fit.hpp). A fit that does not converge writes
 // no file and exits 1.
 
+#include <cmath>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -17,6 +21,7 @@
 #include "data/output.hpp"
 #include "fitting/frf_fit.hpp"
 #include "fitting/lumped_fit.hpp"
+#include "fitting/tfa_fit.hpp"
 
 namespace stiffid::apps {
 namespace {
@@ -33,26 +38,30 @@ struct FitArgs {
   std::string frf;
   std::string tfa;
   std::string band;
+  std::string interval;
   double min_coherence = 0.5;
   double segment_s = 1.0;
   int max_iterations = 200;
   std::string out;
 };
 
-// --band LO:HI in Hz.
-std::pair<double, double> parse_band(const std::string& text) {
+// LO:HI of `flag` (--band in Hz with 0 <= LO, --interval in s), LO < HI.
+std::pair<double, double> parse_range(const std::string& text, const std::string& flag,
+                                      const std::string& unit, bool non_negative) {
   const auto colon = text.find(':');
   try {
     if (colon == std::string::npos) throw std::invalid_argument("no colon");
     std::size_t used_lo = 0, used_hi = 0;
     const std::string lo = text.substr(0, colon), hi = text.substr(colon + 1);
     const double a = std::stod(lo, &used_lo), b = std::stod(hi, &used_hi);
-    if (used_lo != lo.size() || used_hi != hi.size() || !(a >= 0.0) || !(b > a)) {
+    if (used_lo != lo.size() || used_hi != hi.size() || !std::isfinite(a) || !std::isfinite(b) ||
+        (non_negative && !(a >= 0.0)) || !(b > a)) {
       throw std::invalid_argument("range");
     }
     return {a, b};
   } catch (const std::exception&) {
-    throw InputError("--band: '" + text + "': expected LO:HI in Hz with 0 <= LO < HI");
+    throw InputError(flag + ": '" + text + "': expected LO:HI in " + unit + " with " +
+                     (non_negative ? "0 <= " : "") + "LO < HI");
   }
 }
 
@@ -66,7 +75,9 @@ void run_frf_fit(const FitArgs& a) {
   o.seed = a.seed;
   o.max_iterations = a.max_iterations;
   o.min_coherence = a.min_coherence;
-  if (!a.band.empty()) std::tie(o.band_low_hz, o.band_high_hz) = parse_band(a.band);
+  if (!a.band.empty()) {
+    std::tie(o.band_low_hz, o.band_high_hz) = parse_range(a.band, "--band", "Hz", true);
+  }
   if (!a.bounds.empty()) o.ranges = fitting::read_ranges_json(a.bounds, o.model);
   const fitting::FrfTarget target = fitting::read_frf_json(a.frf);
   const fitting::LumpedFitResult r = fitting::fit_frf(target, o);
@@ -74,11 +85,28 @@ void run_frf_fit(const FitArgs& a) {
   data::write_json(a.out, fitting::to_json(r));
 }
 
+void run_tfa_fit(const FitArgs& a) {
+  if (!a.trial.empty() || !a.inputs.empty() || !a.outputs.empty() || !a.frf.empty()) {
+    throw InputError("--tfa: give either TRIAL.csv with --inputs/--outputs, --frf or --tfa, "
+                     "not several");
+  }
+  fitting::TfaFitOptions o;
+  o.model = fitting::parse_lumped_model(a.model, "fit MODEL");
+  if (!a.interval.empty()) {
+    std::tie(o.from_s, o.to_s) = parse_range(a.interval, "--interval", "s", false);
+  }
+  const fitting::TfaTarget target = fitting::read_tfa_json(a.tfa);
+  const fitting::TfaFitResult r = fitting::fit_tfa(target, o);
+  if (!r.fit.status.ok) throw NumericalFailure(a.tfa + ": " + r.fit.status.message);
+  data::write_json(a.out, fitting::to_json(r));
+}
+
 void run_fit(const FitArgs& a) {
   if (!a.tfa.empty()) {
-    throw InputError("--tfa: fits to time-frequency estimates are not available yet; fit the "
-                     "trial (TRIAL.csv --inputs --outputs) or its FRF (--frf)");
+    run_tfa_fit(a);
+    return;
   }
+  if (!a.interval.empty()) throw InputError("--interval: only with --tfa");
   if (!a.frf.empty()) {
     run_frf_fit(a);
     return;
@@ -123,7 +151,11 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("--min-coherence", args->min_coherence,
                   "with --frf: leave out frequencies where an output's multiple coherence is lower")
       ->capture_default_str();
-  cmd->add_option("--tfa", args->tfa, "fit to a `stiffid tfa` JSON (not available yet)");
+  cmd->add_option("--tfa", args->tfa,
+                  "fit kv (joint-space I, C, K) to the K(t), C(t), M(t) tracks of a `stiffid tfa` "
+                  "JSON");
+  cmd->add_option("--interval", args->interval,
+                  "with --tfa: frame times used, A:B in s (default all valid frames)");
   cmd->add_option("-o,--output", args->out, "output JSON (stdout when absent)");
   cmd->callback([args]() { run_fit(*args); });
 }

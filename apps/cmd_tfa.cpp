@@ -19,7 +19,7 @@
 //   "alpha_per_s"[j] (eq 47), "alpha_ridge_per_s"[j] (reassignment), "gamma_per_s"[j] (eq 45),
 //   "eta_squared_per_s2"[j] (eq 46), "phase_difference_rad"[j], "time_lag_s"[j] (eq 42),
 //   "eigenvectors"[r][c] (P(t), columns = modes), "mode_shapes"[r][c] (joint space),
-//   "K_nm_per_rad"[r][c], "C_nms_per_rad"[r][c] (eq 48),
+//   "K_nm_per_rad"[r][c], "C_nms_per_rad"[r][c] (eq 48), "M_kg_m2"[r][c] (M(theta(t)) used),
 //   "normalized_force": {"q"[j], "q_dot"[j], "sigma"[j], "envelope"[j], "envelope_force"[j]},
 //   "valid"[j] (per time: mode j's amplitude-to-noise ratio and frequency SD within limits; all
 //   true for the spectrogram method when every frame resolved), "anr_db"[j] (modal; null for the
@@ -258,6 +258,9 @@ void run(TfaCommandOptions cli) {
   out["mode_shapes"] = matrices(r.modal.mode_shape);
   out["K_nm_per_rad"] = matrices(r.modal.stiffness_nm_per_rad);
   out["C_nms_per_rad"] = matrices(r.modal.damping_nms_per_rad);
+  std::vector<Eigen::MatrixXd> inertia;  // M = (M^1/2)^2 per frame
+  for (const Eigen::MatrixXd& root : r.modal.inertia_sqrt) inertia.push_back(root * root);
+  out["M_kg_m2"] = matrices(inertia);
   out["normalized_force"] = {{"q", columns(r.force.coordinate)},
                              {"q_dot", columns(r.force.velocity)},
                              {"sigma", columns(r.force.force)},

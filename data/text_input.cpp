@@ -1,6 +1,7 @@
 #include "data/text_input.hpp"
 
 #include <fstream>
+#include <limits>
 
 namespace stiffid::data {
 
@@ -27,6 +28,35 @@ std::string line_column(const std::string& text, std::size_t offset) {
     }
   }
   return std::to_string(line) + ":" + std::to_string(column);
+}
+
+const nlohmann::json& json_member(const nlohmann::json& j, const std::string& key,
+                                  const std::string& path, const std::string& where,
+                                  const std::string& expected) {
+  if (!j.is_object() || !j.contains(key)) {
+    throw InputError(path + ": missing key '" + where + key + "' (expected " + expected + ")");
+  }
+  return j.at(key);
+}
+
+std::vector<double> json_numbers(const nlohmann::json& j, const std::string& path,
+                                 const std::string& key, std::size_t size, bool allow_null) {
+  if (!j.is_array() || (size > 0 && j.size() != size)) {
+    throw InputError(path + ": '" + key + "' must be an array of " +
+                     (size > 0 ? std::to_string(size) + " " : std::string()) + "numbers");
+  }
+  std::vector<double> out;
+  out.reserve(j.size());
+  for (const auto& v : j) {
+    if (allow_null && v.is_null()) {
+      out.push_back(std::numeric_limits<double>::quiet_NaN());
+    } else if (v.is_number()) {
+      out.push_back(v.get<double>());
+    } else {
+      throw InputError(path + ": '" + key + "' holds a non-number");
+    }
+  }
+  return out;
 }
 
 }  // namespace stiffid::data

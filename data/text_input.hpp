@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "data/error.hpp"
 
@@ -36,5 +37,18 @@ template <typename Json = nlohmann::json>
 Json read_json_file(const std::string& path) {
   return parse_json_text<Json>(read_text_file(path), path);
 }
+
+/// j[key] of a JSON object read from `path`. Throws InputError "PATH: missing key 'WHERE KEY'
+/// (expected EXPECTED)" when j is not an object or has no such key; `where` is the key path of j
+/// (e.g. "coherence.").
+const nlohmann::json& json_member(const nlohmann::json& j, const std::string& key,
+                                  const std::string& path, const std::string& where,
+                                  const std::string& expected);
+
+/// The numbers of a JSON array at key path `key` of `path`, `size` of them when size > 0. A null
+/// entry reads as NaN when `allow_null` (how stiffid writes non-finite values), else it is an
+/// error like any non-number. Throws InputError naming the file and key.
+std::vector<double> json_numbers(const nlohmann::json& j, const std::string& path,
+                                 const std::string& key, std::size_t size, bool allow_null = false);
 
 }  // namespace stiffid::data

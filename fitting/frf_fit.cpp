@@ -87,23 +87,12 @@ struct FrequencyResidual {
 
 const nlohmann::json& at(const nlohmann::json& j, const std::string& key, const std::string& path,
                          const std::string& where) {
-  if (!j.is_object() || !j.contains(key)) {
-    throw InputError(path + ": missing key '" + where + key + "' (expected the JSON of stiffid frf)");
-  }
-  return j.at(key);
+  return data::json_member(j, key, path, where, "the JSON of stiffid frf");
 }
 
 std::vector<double> numbers(const nlohmann::json& j, const std::string& path, const std::string& key,
                             std::size_t size) {
-  if (!j.is_array() || (size > 0 && j.size() != size)) {
-    throw InputError(path + ": '" + key + "' must be an array of " + std::to_string(size) + " numbers");
-  }
-  std::vector<double> out;
-  for (const auto& v : j) {
-    if (!v.is_number()) throw InputError(path + ": '" + key + "' holds a non-number");
-    out.push_back(v.get<double>());
-  }
-  return out;
+  return data::json_numbers(j, path, key, size);
 }
 
 double mean_abs_diagonal(const Eigen::MatrixXd& a) { return a.diagonal().cwiseAbs().mean(); }

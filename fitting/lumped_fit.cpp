@@ -658,7 +658,11 @@ nlohmann::json to_json(const LumpedFitResult& r) {
   }
   j["target"] = r.target;
   j["vaf_percent"] = vector(r.vaf_percent);
-  j[r.target == "frf" ? "residual_rms_m_per_n" : "residual_rms_m"] = vector(r.residual_rms_m);
+  // Residual RMS in the target's unit: m (trial), m/N (frf), each matrix's own unit (tfa).
+  const char* residual_key = r.target == "frf"   ? "residual_rms_m_per_n"
+                             : r.target == "tfa" ? "residual_rms"
+                                                 : "residual_rms_m";
+  j[residual_key] = vector(r.residual_rms_m);
   j["status"] = r.status.ok;
   j["message"] = r.status.message;
   j["termination"] = r.termination;

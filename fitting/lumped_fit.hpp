@@ -66,7 +66,8 @@ struct FittedMatrix {
 
 struct LumpedFitResult {
   LumpedModel model = LumpedModel::kelvin_voigt;
-  std::string target = "trial";          ///< "trial" (time series) or "frf" (frf_fit.hpp)
+  std::string target = "trial";          ///< "trial" (time series), "frf" (frf_fit.hpp) or "tfa"
+                                         ///< (tfa_fit.hpp: vaf and residual RMS per matrix)
   int dof = 0;
   std::vector<FittedMatrix> parameters;  ///< in model_matrices order
   Eigen::VectorXd vaf_percent;           ///< [n] variance accounted for per output, %
