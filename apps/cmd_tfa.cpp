@@ -204,6 +204,8 @@ void run(TfaCommandOptions cli) {
                            {"init_window_s", mo.init_window_s},
                            {"anr_threshold_db", mo.anr_threshold_db},
                            {"max_frequency_sd_hz", mo.max_frequency_sd_hz},
+                           {"max_mode_to_data_db", mo.max_mode_to_data_db},
+                           {"min_mode_separation", mo.min_mode_separation},
                            {"shape_weight", r.modes.shape_weight},
                            {"track_roughness", r.modes.track_roughness},
                            {"shape_weight_from_data", mo.shape_weight < 0.0},

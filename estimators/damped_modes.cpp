@@ -46,6 +46,9 @@ void check_options(const DampedModesOptions& o) {
     fail("track_roughness", "must be positive (rad/s), or negative for the choice from the data");
   if (!(o.init_window_s > 0.0)) fail("init_window_s", "must be positive (s)");
   if (!(o.max_frequency_sd_hz > 0.0)) fail("max_frequency_sd_hz", "must be positive (Hz)");
+  if (!std::isfinite(o.max_mode_to_data_db)) fail("max_mode_to_data_db", "must be finite (dB)");
+  if (!(o.min_mode_separation >= 0.0 && o.min_mode_separation < 1.0))
+    fail("min_mode_separation", "must be in [0, 1)");
   if (o.max_iterations < 1) fail("max_iterations", "must be at least 1");
 }
 
@@ -422,6 +425,45 @@ Eigen::MatrixXcd complete_basis(const Eigen::VectorXcd& u) {
   return q;
 }
 
+// Validity checks against fits the residual cannot tell from good ones: (a) a mode whose power
+// exceeds the local whitened data power (+-0.25 s) by more than max_mode_to_data_db: its
+// amplitude is cancelled by another mode's (two near-equal tracks with large opposite
+// amplitudes, as when a sharp stiffness change outruns the splines); (b) two modes closer in
+// frequency than min_mode_separation of their mean or two posterior SDs: merged tracks, whose
+// mode shapes and eqs 45-48 are undetermined.
+void flag_degenerate_modes(const Prepared& p, const DampedModesOptions& options,
+                           std::vector<ModeTrack>& modes) {
+  const Eigen::Index n = p.y.rows(), c = p.y.cols();
+  Eigen::VectorXd cumulative(n + 1);  // running sum of the whitened data power
+  cumulative(0) = 0.0;
+  for (Eigen::Index k = 0; k < n; ++k) {
+    cumulative(k + 1) = cumulative(k) + p.yw.segment(k * c, c).squaredNorm();
+  }
+  const Eigen::Index half = std::max<Eigen::Index>(1, std::lround(0.25 * p.rate_hz));
+  const double ratio = std::pow(10.0, options.max_mode_to_data_db / 10.0);
+  for (ModeTrack& mt : modes) {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const Eigen::Index lo = std::max<Eigen::Index>(0, i - half);
+      const Eigen::Index hi = std::min<Eigen::Index>(n, i + half + 1);
+      const double local = (cumulative(hi) - cumulative(lo)) / static_cast<double>(hi - lo);
+      if (std::pow(10.0, mt.anr_db(i) / 10.0) > ratio * local) mt.valid(i) = false;
+    }
+  }
+  for (std::size_t j = 0; j < modes.size(); ++j) {
+    for (std::size_t l = j + 1; l < modes.size(); ++l) {
+      ModeTrack& a = modes[j];
+      ModeTrack& b = modes[l];
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double gap = std::abs(a.frequency_hz(i) - b.frequency_hz(i));
+        const double limit =
+            std::max(options.min_mode_separation * 0.5 * (a.frequency_hz(i) + b.frequency_hz(i)),
+                     2.0 * (a.frequency_sd_hz(i) + b.frequency_sd_hz(i)));
+        if (!(gap > limit)) a.valid(i) = b.valid(i) = false;
+      }
+    }
+  }
+}
+
 }  // namespace
 
 DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& deviation,
@@ -638,6 +680,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     }
     result.modes.push_back(std::move(mt));
   }
+  flag_degenerate_modes(p, options, result.modes);
   std::stable_sort(result.modes.begin(), result.modes.end(), [](const auto& a, const auto& b) {
     return a.omega_rad_per_s.mean() < b.omega_rad_per_s.mean();
   });

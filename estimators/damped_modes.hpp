@@ -43,6 +43,12 @@ struct DampedModesOptions {
   double init_window_s = 0.5;           ///< sliding matrix-pencil windows for the start, s
   double anr_threshold_db = 0.0;        ///< validity: amplitude-to-noise ratio at least this, dB
   double max_frequency_sd_hz = 0.1;     ///< validity: posterior SD of f_j(t) at most this, Hz
+  double max_mode_to_data_db = 20.0;    ///< validity: a mode's power at most this far above the
+                                        ///< whitened data power within +-0.25 s, dB (more: modes
+                                        ///< cancelling each other)
+  double min_mode_separation = 0.01;    ///< validity: two modes whose frequencies differ by less
+                                        ///< than this fraction of their mean (or 2 SDs) are both
+                                        ///< invalid there (merged tracks)
   int max_iterations = 100;             ///< Levenberg-Marquardt iterations per stage
 };
 
@@ -63,7 +69,8 @@ struct ModeTrack {
   Eigen::VectorXd anr_db;                  ///< [T] amplitude-to-noise ratio, dB (docs/tfa_modal.md)
   Eigen::VectorXd frequency_sd_hz;         ///< [T] posterior SD of f_j, Hz
   Eigen::VectorXd alpha_sd_per_s;          ///< [T] posterior SD of alpha_j, 1/s
-  Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] ANR and SD within limits, fit converged
+  Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] fit converged; ANR, frequency SD, mode-to-
+                                                ///< data power and separation within limits
 };
 
 struct DampedModesResult {

@@ -1,5 +1,6 @@
 #include "estimators/modal_parameters.hpp"
 
+#include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <Eigen/SVD>
 #include <cmath>
@@ -109,7 +110,10 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
       k = 0.5 * (k + k.transpose()).eval();
       d = 0.5 * (d + d.transpose()).eval();
     }
-    r.valid(i) = valid && k.allFinite() && d.allFinite();
+    // A limb's joint stiffness about a posture is positive definite: an indefinite K(t) comes
+    // from tracks the data do not determine (e.g. two modes merged), never from a real arm.
+    r.valid(i) = valid && k.allFinite() && d.allFinite() &&
+                 Eigen::LLT<Eigen::MatrixXd>(0.5 * (k + k.transpose())).info() == Eigen::Success;
     r.eigenvectors.push_back(std::move(p));
     r.stiffness.push_back(std::move(k));
     r.damping.push_back(std::move(d));

@@ -44,7 +44,8 @@ struct ModalParametersResult {
   std::vector<Eigen::MatrixXd> stiffness;    ///< [T] (C x C) joint stiffness K(t), N m/rad when
                                              ///< channels are rad and inertia kg m^2
   std::vector<Eigen::MatrixXd> damping;      ///< [T] (C x C) joint damping C(t), N m s/rad
-  Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] every mode valid at t and eta^2 > Gamma^2
+  Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] every mode valid at t, eta^2 > Gamma^2
+                                                ///< and K(t) positive definite
 };
 
 /// K(t), C(t) from the tracks. `inertia_kg_m2` holds M(theta(t)) ((C x C) SPD) for every time of
