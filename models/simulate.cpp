@@ -175,11 +175,14 @@ void cos_sin_of_sum(double a, double cos_a, double sin_a, double d, double& cos_
     sin_out = std::sin(a + d);
     return;
   }
+  // Horner forms with the reciprocals as constants (a division per term would dominate).
+  constexpr double k6 = 1.0 / 6.0, k20 = 1.0 / 20.0, k42 = 1.0 / 42.0, k72 = 1.0 / 72.0;
+  constexpr double k2 = 1.0 / 2.0, k12 = 1.0 / 12.0, k30 = 1.0 / 30.0, k56 = 1.0 / 56.0;
+  constexpr double k90 = 1.0 / 90.0;
   const double d2 = d * d;
-  const double sin_d =
-      d * (1.0 - d2 / 6.0 * (1.0 - d2 / 20.0 * (1.0 - d2 / 42.0 * (1.0 - d2 / 72.0))));
+  const double sin_d = d * (1.0 - d2 * k6 * (1.0 - d2 * k20 * (1.0 - d2 * k42 * (1.0 - d2 * k72))));
   const double cos_d =
-      1.0 - d2 / 2.0 * (1.0 - d2 / 12.0 * (1.0 - d2 / 30.0 * (1.0 - d2 / 56.0 * (1.0 - d2 / 90.0))));
+      1.0 - d2 * k2 * (1.0 - d2 * k12 * (1.0 - d2 * k30 * (1.0 - d2 * k56 * (1.0 - d2 * k90))));
   cos_out = cos_a * cos_d - sin_a * sin_d;
   sin_out = sin_a * cos_d + cos_a * sin_d;
 }
