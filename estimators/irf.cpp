@@ -1,7 +1,6 @@
 #include "estimators/irf.hpp"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -12,6 +11,7 @@
 
 #include "estimators/correlation.hpp"
 #include "estimators/fft.hpp"
+#include "estimators/spectral_projection.hpp"
 
 namespace stiffid::estimators {
 namespace {
@@ -152,13 +152,14 @@ Solution solve_pseudo_inverse(const Eigen::MatrixXd& psi, const Eigen::MatrixXd&
                               const Eigen::VectorXd& output_power, int samples,
                               const IrfOptions& options) {
   Solution s;
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(psi);
-  if (eig.info() != Eigen::Success) {
+  // Eigenvalues and the projections v_k^T phi without forming the eigenvectors (an O(n^3) step
+  // with a large constant: 1.3 s at 1202 lags x inputs, against ~0.2 s).
+  const SpectralProjection eig(psi, phi);
+  if (!eig.status().ok) {
     s.status = Status::failure("IRF: eigendecomposition of Psi did not converge");
     return s;
   }
   const Eigen::VectorXd& w = eig.eigenvalues();  // ascending
-  const Eigen::MatrixXd& v = eig.eigenvectors();
   const int size = static_cast<int>(w.size());
   const int outputs = static_cast<int>(phi.cols());
   const double largest = w(size - 1);
@@ -166,7 +167,7 @@ Solution solve_pseudo_inverse(const Eigen::MatrixXd& psi, const Eigen::MatrixXd&
       w(0) > 0.0 ? largest / w(0) : std::numeric_limits<double>::infinity();
   const double floor = size * std::numeric_limits<double>::epsilon() * largest;
 
-  const Eigen::MatrixXd projection = v.transpose() * phi;  // (N*L x M)
+  const Eigen::MatrixXd& projection = eig.projections();  // V^T phi, (N*L x M)
   std::vector<int> usable;
   Eigen::MatrixXd contribution = Eigen::MatrixXd::Zero(size, outputs);  // fraction of var(y_j)
   for (int k = 0; k < size; ++k) {
@@ -205,11 +206,12 @@ Solution solve_pseudo_inverse(const Eigen::MatrixXd& psi, const Eigen::MatrixXd&
     s.mdl.minCoeff(&best);
     keep = static_cast<int>(best) + 1;
   }
-  s.coefficients = Eigen::MatrixXd::Zero(psi.rows(), outputs);
+  Eigen::MatrixXd filtered = Eigen::MatrixXd::Zero(psi.rows(), outputs);  // Lambda^+ V^T phi
   for (int m = 0; m < keep; ++m) {
     const int k = usable[m];
-    s.coefficients += v.col(k) * (projection.row(k) / w(k));
+    filtered.row(k) = projection.row(k) / w(k);
   }
+  s.coefficients = eig.apply(filtered);
   s.rank = keep;
   return s;
 }

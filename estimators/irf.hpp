@@ -31,6 +31,9 @@ enum class IrfInverse {
   /// IRF; it may drop weak directions that carry signal (bias).
   tsvd,
 };
+// The pseudo-inverses take Psi's eigenvalues and the projections of Phi_xy on its eigenvectors
+// from SpectralProjection (spectral_projection.hpp), which never forms the eigenvectors: 10 min at
+// 1 kHz, lags -0.1:0.5 s, 2 inputs (Psi 1202 x 1202): `stiffid irf --pinv mdl` 3.1 -> 1.7 s.
 
 struct IrfOptions {
   int first_lag = 0;  ///< A, samples (negative: anticausal part), <= last_lag
