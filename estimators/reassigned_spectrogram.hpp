@@ -77,7 +77,8 @@ struct ReassignedSpectrogram {
   SampledWindow::Cut frame_window(int m) const;
 };
 
-/// Computes the three STFTs of every channel in one batched FFT (plans made once) and the
+/// Computes the three STFTs of every channel with batched FFTs of 16 frames at a time through one
+/// plan made once (the buffers of a single batch of every frame run to hundreds of MB) and the
 /// reassignment. Throws InputError when the valid region is shorter than one window (2L + 1
 /// samples) or the options are out of range (window or hop not positive, FFT shorter than the
 /// window, empty frequency band).
