@@ -3,6 +3,7 @@
 #include <Eigen/LU>
 #include <cmath>
 #include <complex>
+#include <limits>
 
 #include "data/error.hpp"
 #include "estimators/damped_modes.hpp"
@@ -81,7 +82,13 @@ std::pair<double, double> worst_errors(const Case& cs, ModalMapping mapping,
   double ek = 0.0, ec = 0.0;
   for (Eigen::Index i = 0; i < r.t_s.size(); ++i) {
     if (r.t_s(i) < 2.6 || r.t_s(i) > 4.5) continue;
-    BOOST_CHECK(r.valid(i));
+    // Noise-free input is fitted as 40 dB data (the noise floor of damped_modes.cpp): a frame may
+    // be invalid only because a mode has sunk below that floor (ANR < 0 dB), never otherwise.
+    double weakest_anr_db = std::numeric_limits<double>::infinity();
+    for (const auto& track : modes.modes) weakest_anr_db = std::min(weakest_anr_db, track.anr_db(i));
+    BOOST_CHECK_MESSAGE(r.valid(i) || weakest_anr_db < DampedModesOptions{}.anr_threshold_db,
+                        "t = " << r.t_s(i) << " s invalid with every mode's ANR >= "
+                               << weakest_anr_db << " dB");
     ek = std::max(ek, (r.stiffness[i] - cs.k).cwiseAbs().maxCoeff() / cs.k.cwiseAbs().maxCoeff());
     ec = std::max(ec, (r.damping[i] - cs.c).cwiseAbs().maxCoeff() / cs.c.cwiseAbs().maxCoeff());
   }
