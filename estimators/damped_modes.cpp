@@ -103,8 +103,8 @@ Prepared prepare(const Eigen::Ref<const Eigen::MatrixXd>& x, double rate_hz, dou
   // with a lower floor the whitened residual is that model error, the tracks chase it and a
   // barely excited mode fits it (60 dB floor, noise-free posture trials: k11 off by 39 % at 0
   // degrees, 2-5 % at 90/135; 40 dB: 0.1-0.5 %; scipy posture fixtures: sigmoid K lost at a
-  // 1e-12 floor). Data with more than 40 dB SNR are fitted as 40 dB data; noisier data as before
-  // (20 dB: the 1e-6 term only).
+  // 1e-12 floor). Data whose (filtered) noise is below 1e-4 of the response power are fitted as
+  // such; noisier data as before (the 1e-6 term only).
   const double power = p.y.squaredNorm() / double(p.y.size());
   const double floor =
       std::max(1e-6 * power, 1e-4 * power - p.noise_cov.trace() / double(c)) + 1e-300;
