@@ -511,10 +511,9 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // by the BIC rule, RSS drop > ln(N) * (added effective parameters) * s^2, with s^2 = RSS / (N -
   // effective parameters) of the rougher fit (the residual's own variance, so a pre-onset noise
   // level that is off by a few tens of percent does not move the choice), but never below 1, the
-  // whitened noise level: on noise-free data (noise at the 60 dB floor) the residual is the arm's
-  // model error, and tracks rough enough to chase it made every frame fail the frequency-SD
-  // validity test (90 deg constant K: K_valid 0 -> 481 of 485 frames, k11 2.5 -> 2.2 %). Whitened
-  // units.
+  // whitened noise level: on noise-free data the residual is the arm's model error, and with the
+  // former 60 dB noise floor tracks rough enough to chase it made every frame fail the
+  // frequency-SD validity test (90 deg constant K: K_valid on 0 of 485 frames). Whitened units.
   std::unique_ptr<VpProblem> stage1;
   StageOutcome outcome;
   Eigen::VectorXd best_theta = theta;

@@ -110,8 +110,8 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
       k = 0.5 * (k + k.transpose()).eval();
       d = 0.5 * (d + d.transpose()).eval();
     }
-    // A limb's joint stiffness about a posture is positive definite: an indefinite K(t) comes
-    // from tracks the data do not determine (e.g. two modes merged), never from a real arm.
+    // The joint stiffness of a limb holding a posture is positive definite: an indefinite K(t)
+    // comes from tracks the data do not determine (e.g. two modes merged).
     r.valid(i) = valid && k.allFinite() && d.allFinite() &&
                  Eigen::LLT<Eigen::MatrixXd>(0.5 * (k + k.transpose())).info() == Eigen::Success;
     r.eigenvectors.push_back(std::move(p));
