@@ -16,12 +16,15 @@
 namespace stiffid::data {
 namespace {
 
-std::string trim(const std::string& s) {
+// `s` without leading and trailing blanks (space, tab, carriage return).
+std::string_view trim_view(std::string_view s) {
   const auto first = s.find_first_not_of(" \t\r");
-  if (first == std::string::npos) return {};
+  if (first == std::string_view::npos) return {};
   const auto last = s.find_last_not_of(" \t\r");
   return s.substr(first, last - first + 1);
 }
+
+std::string trim(const std::string& s) { return std::string(trim_view(s)); }
 
 // Splits one CSV line into trimmed cells; double-quoted cells may hold commas and "" for a quote.
 std::vector<std::string> split_line(const std::string& line) {
@@ -54,8 +57,8 @@ std::vector<std::string> split_line(const std::string& line) {
 
 // A blank line or a comment (first non-blank character '#').
 bool skipped(std::string_view line) {
-  const auto first = line.find_first_not_of(" \t\r");
-  return first == std::string_view::npos || line[first] == '#';
+  const std::string_view t = trim_view(line);
+  return t.empty() || t[0] == '#';
 }
 
 // Splits a header cell "name[unit]" or "name (unit)" into name and unit.
@@ -100,7 +103,6 @@ double parse_number(std::string_view text, const std::string& source, int line, 
   throw InputError(where + ": column '" + column + "': expected a finite number, got '" +
                    std::string(text) + "'");
 }
-
 
 }  // namespace
 
@@ -161,13 +163,6 @@ CsvTable parse_csv(const std::string& text, const std::string& source) {
 CsvTable read_csv(const std::string& path) { return parse_csv(read_text_file(path), path); }
 
 namespace {
-
-std::string_view trim_view(std::string_view s) {
-  const auto first = s.find_first_not_of(" \t\r");
-  if (first == std::string_view::npos) return {};
-  const auto last = s.find_last_not_of(" \t\r");
-  return s.substr(first, last - first + 1);
-}
 
 // Shortest text that reads back as `v` (what the user most likely wrote).
 std::string shortest(double v) {
