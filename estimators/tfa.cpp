@@ -1,6 +1,5 @@
 #include "estimators/tfa.hpp"
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <complex>
@@ -89,7 +88,7 @@ void identify_modal(TfaResult& r, const TfaOptions& options) {
   m.mode_shape.assign(frames, Eigen::MatrixXd::Zero(n, n));
   m.inertia_sqrt.reserve(frames);
   for (int t = 0; t < frames; ++t) {
-    m.inertia_sqrt.push_back(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(inertia[t]).operatorSqrt());
+    m.inertia_sqrt.push_back(models::spd_sqrt(inertia[t]));
   }
   for (int j = 0; j < n; ++j) {
     const ModeTrack& track = fit.modes[j];
