@@ -1,13 +1,13 @@
 #!/usr/bin/python3
 """Writes the MIMO benchmark trial: 10 minutes at 1 kHz of the 2-D endpoint model.
 
-  make_bench_trial.py OUT.csv [--seconds 600] [--fs 1000] [--seed 2026]
+  make_bench_trial.py OUT.csv [--seconds 600] [--fs 1000] [--force-hz 9] [--seed 2026]
 
 I x'' + B x' + K x = f with the reference values (I = [[1.2, 0.1], [0.1, 0.9]] kg,
 B = [[10, 1], [1, 7]] N s/m, K = [[250, 40], [40, 180]] N/m), zero-order-hold discretised
-(scipy.signal.cont2discrete); forces fx, fy in N: 4th-order Butterworth 9 Hz low-pass of white
-noise (analog prototype, ZOH), std 0.25 N, 25 % coupling (25 % of the variance of fy linearly
-related to fx); positions x, y in m with output noise at 20 dB SNR. Columns t,fx,fy,x,y.
+(scipy.signal.cont2discrete); forces fx, fy in N: 4th-order Butterworth low-pass of white
+noise at --force-hz (analog prototype, ZOH; 9 Hz as in Perreault et al. 1999), std 0.25 N,
+25 % coupling (25 % of the variance of fy linearly related to fx); positions x, y in m with output noise at 20 dB SNR. Columns t,fx,fy,x,y.
 Deterministic (numpy default_rng(seed)). Not committed: the file is ~45 MB.
 """
 import argparse
@@ -26,13 +26,14 @@ def main():
     p.add_argument("out")
     p.add_argument("--seconds", type=float, default=600.0)
     p.add_argument("--fs", type=float, default=1000.0)
+    p.add_argument("--force-hz", type=float, default=9.0)
     p.add_argument("--seed", type=int, default=2026)
     a = p.parse_args()
     dt = 1.0 / a.fs
     n = int(round(a.seconds * a.fs))
     rng = np.random.default_rng(a.seed)
 
-    ba, aa = signal.butter(4, 2 * np.pi * 9.0, analog=True)
+    ba, aa = signal.butter(4, 2 * np.pi * a.force_hz, analog=True)
     bf, af, _ = signal.cont2discrete((ba, aa), dt, method="zoh")
     w = signal.lfilter(bf.ravel(), af, rng.standard_normal((n, 2)), axis=0)
     w /= w.std(axis=0)

@@ -40,18 +40,20 @@ def window_arg(text):
 
 
 def spectra(signals, fs, nfft, noverlap, window, detrend):
-    """Cross-spectral matrix G[f, a, b] = E[conj(S_a) S_b] of all channels (F x C x C)."""
+    """Cross-spectral matrix G[f, a, b] = E[conj(S_a) S_b] of all channels (F x C x C): csd for the
+    pairs a <= b, and G[f, b, a] = conj(G[f, a, b])."""
     c = len(signals)
     freqs = None
     g = None
     for a in range(c):
-        for b in range(c):
+        for b in range(a, c):
             f, p = scipy.signal.csd(signals[a], signals[b], fs=fs, window=window, nperseg=nfft,
                                     noverlap=noverlap, detrend=detrend, scaling="density")
             if g is None:
                 freqs = f
                 g = np.zeros((len(f), c, c), dtype=complex)
             g[:, a, b] = p
+            g[:, b, a] = np.conj(p)
     return freqs, g
 
 

@@ -1,13 +1,16 @@
 #!/usr/bin/python3
 """Peer of `stiffid irf` in Python (numpy FFT correlations + scipy.linalg.solve), for benchmarks.
 
-  peer_irf.py TRIAL.csv --inputs fx,fy --outputs x,y --lags A:B [--fs HZ] [-o OUT.json]
+  peer_irf.py TRIAL.csv --inputs fx,fy --outputs x,y --lags A:B [--pinv mdl] [--fs HZ] [-o OUT.json]
 
 Same conventions and core JSON keys as the C++ command: biased correlations with means removed,
 phi_xy(d) = 1/S sum_k x(k) y(k + d), all from one batched zero-padded real FFT of every channel;
 the block-Toeplitz system Psi H = Phi_xy (Perreault et al. 1999 eq 11) solved with
 scipy.linalg.solve(assume_a="pos") (Cholesky; scipy has no block-Toeplitz solver, solve_toeplitz
-is for scalar Toeplitz matrices only); h = H / dt; predicted outputs by FFT convolution; VAF per
+is for scalar Toeplitz matrices only), or with --pinv mdl the Westwick & Kearney pseudo-inverse as
+stiffid computes it (numpy.linalg.eigh of Psi; eigenvectors above n eps max(w), ordered by their
+contribution to the output variance, as many as minimise MDL(m) = (1 + m M ln(n)/n) V(m),
+n = S M); h = H / dt; predicted outputs by FFT convolution; VAF per
 output and R^2 from the predicted outputs.
 """
 import argparse
@@ -32,12 +35,29 @@ def read_trial(path, fs_flag):
     return cols, fs
 
 
+def pseudo_inverse(psi, phi_xy, output_power, samples):
+    """dt * h by the MDL pseudo-inverse of Westwick & Kearney 1997 (the rule of stiffid's mdl)."""
+    w, v = np.linalg.eigh(psi)  # ascending
+    proj = v.T @ phi_xy
+    usable = np.flatnonzero(w > len(w) * np.finfo(float).eps * w[-1])
+    total = (proj[usable] ** 2 / w[usable, None] / output_power[None, :]).sum(axis=1)
+    order = usable[np.lexsort((-w[usable], -total))]  # decreasing contribution, then eigenvalue
+    n_out = phi_xy.shape[1]
+    n = float(samples) * n_out
+    residual = np.maximum(n_out - np.cumsum(np.sort(total)[::-1]), 0.0)
+    m = np.arange(1, len(order) + 1)
+    keep = int(np.argmin((1.0 + m * n_out * np.log(n) / n) * residual)) + 1
+    kept = order[:keep]
+    return v[:, kept] @ (proj[kept] / w[kept, None])
+
+
 def main(argv):
     p = argparse.ArgumentParser()
     p.add_argument("trial")
     p.add_argument("--inputs", required=True)
     p.add_argument("--outputs", required=True)
     p.add_argument("--lags", required=True)
+    p.add_argument("--pinv", choices=["mdl"], default=None)
     p.add_argument("--fs", type=float, default=0.0)
     p.add_argument("-o", "--output", default="")
     a = p.parse_args(argv)
@@ -74,7 +94,10 @@ def main(argv):
         for i in range(n_in):
             phi_xy[i * lags:(i + 1) * lags, j] = phi[first + max_lag:first + max_lag + lags,
                                                      off + i + n_in * j]
-    coef = scipy.linalg.solve(psi, phi_xy, assume_a="pos")  # dt * h
+    if a.pinv:
+        coef = pseudo_inverse(psi, phi_xy, (y**2).mean(axis=0), s)
+    else:
+        coef = scipy.linalg.solve(psi, phi_xy, assume_a="pos")  # dt * h
     h = coef * fs
 
     kernels = np.zeros((nfft, n_in * n_out))

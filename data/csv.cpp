@@ -8,6 +8,10 @@
 #include <iomanip>
 #include <set>
 #include <sstream>
+#include <thread>
+#include <exception>
+
+#include <fast_float/fast_float.h>
 
 #include "data/error.hpp"
 #include "data/text_input.hpp"
@@ -92,7 +96,9 @@ double parse_number(std::string_view text, const std::string& source, int line, 
                     const std::string& column) {
   double value = 0.0;
   const char* end = text.data() + text.size();
-  const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+  const char* begin = text.data();
+  if (text.size() > 1 && text[0] == '+' && text[1] != '-') ++begin;  // accepted, as by strtod
+  const auto [ptr, ec] = fast_float::from_chars(begin, end, value);
   if (!text.empty() && ec == std::errc() && ptr == end && std::isfinite(value)) return value;
   // The location is spelled out only on failure: this runs for every cell of a long trial.
   const std::string where = source + ":" + std::to_string(line) + ":" + std::to_string(col + 1);
@@ -171,59 +177,197 @@ std::string shortest(double v) {
   return std::string(buffer, result.ptr);
 }
 
-// A trial file's numbers: header cells, values row-major (rows x header.size()), and the 1-based
-// line of each row, for messages.
+// A trial file's numbers: the header cells, the index of the time column (-1: none), the other
+// columns in file order as channels (rows x channels, column-major: a trial's layout), the time
+// column, and the 1-based line of each row, for messages.
 struct NumericCsv {
   std::vector<std::string> header;
-  std::vector<double> values;
+  int time_col = -1;
+  Eigen::MatrixXd channels;
+  Eigen::VectorXd time;
   std::vector<int> lines;
+  int rows() const { return static_cast<int>(lines.size()); }
 };
 
-// Streams the text once, converting cells to doubles as they are met (no per-cell strings: a
-// 10-minute, 1 kHz trial has millions of cells). Quoted cells take the general splitter.
-NumericCsv parse_numeric(const std::string& text, const std::string& source) {
-  NumericCsv out;
-  size_t pos = 0;
-  int line = 0;
-  while (pos < text.size()) {
-    size_t eol = text.find('\n', pos);
-    if (eol == std::string::npos) eol = text.size();
-    const std::string_view row(text.data() + pos, eol - pos);
+bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
+
+// A row of exactly `columns` plain numbers (optional blanks around each, no quotes) parsed in place
+// into out[0..columns). False for anything else: the checked path then parses the row again and
+// names what is wrong. A leading '+' is accepted, as by strtod.
+bool parse_plain_row(std::string_view row, std::size_t columns, double* out) {
+  const char* p = row.data();
+  const char* const end = p + row.size();
+  for (std::size_t c = 0; c < columns; ++c) {
+    while (p < end && is_blank(*p)) ++p;
+    if (end - p > 1 && *p == '+' && p[1] != '-') ++p;
+    const auto [ptr, ec] = fast_float::from_chars(p, end, out[c]);
+    if (ec != std::errc() || !std::isfinite(out[c])) return false;
+    p = ptr;
+    while (p < end && is_blank(*p)) ++p;
+    if (c + 1 < columns) {
+      if (p == end || *p != ',') return false;
+      ++p;
+    }
+  }
+  return p == end;
+}
+
+// The checked path for one data row: every cell as a finite double into out[0..columns), or an
+// InputError naming source:line:column (ragged row, non-numeric or non-finite cell).
+void parse_checked_row(std::string_view row, const std::vector<std::string>& header,
+                       const std::string& source, int line, double* out) {
+  const std::size_t columns = header.size();
+  std::vector<std::string> split;
+  if (row.find('"') != std::string_view::npos) {
+    split = split_line(std::string(row));
+  } else {
+    std::size_t start = 0;
+    while (true) {
+      const std::size_t comma = std::min(row.find(',', start), row.size());
+      split.emplace_back(trim_view(row.substr(start, comma - start)));
+      if (comma == row.size()) break;
+      start = comma + 1;
+    }
+  }
+  if (split.size() != columns) throw ragged(source, line, split.size(), columns);
+  for (std::size_t c = 0; c < columns; ++c) {
+    out[c] = parse_number(split[c], source, line, static_cast<int>(c), header[c]);
+  }
+}
+
+// A run of whole lines text[begin, end) parsed by one thread: its number of lines and of data rows
+// (counted first), then the 1-based line and the row index at which it starts.
+struct Chunk {
+  std::size_t begin = 0;
+  std::size_t end = 0;
+  int lines = 0;
+  int rows = 0;
+  int first_line = 0;
+  int first_row = 0;
+};
+
+// A line that is a data row: not blank, not a comment. Most rows start with a digit or a sign,
+// which settles it without trimming.
+bool data_row(std::string_view row) {
+  if (!row.empty() && !is_blank(row[0])) return row[0] != '#';
+  return !skipped(row);
+}
+
+void count_lines_and_rows(std::string_view text, Chunk& chunk) {
+  std::size_t pos = chunk.begin;
+  while (pos < chunk.end) {
+    const std::size_t eol = std::min(text.find('\n', pos), chunk.end);
+    ++chunk.lines;
+    if (data_row(text.substr(pos, eol - pos))) ++chunk.rows;
+    pos = eol + 1;
+  }
+}
+
+// Parses the data rows of a chunk into the destination columns: file column c of row r goes to
+// columns[c][r], its line to lines[r].
+void parse_rows(std::string_view text, const Chunk& chunk, const std::vector<std::string>& header,
+                const std::string& source, const std::vector<double*>& columns, int* lines) {
+  const std::size_t count = header.size();
+  std::vector<double> cells(count);
+  int line = chunk.first_line - 1;
+  int row_index = chunk.first_row;
+  std::size_t pos = chunk.begin;
+  while (pos < chunk.end) {
+    const std::size_t eol = std::min(text.find('\n', pos), chunk.end);
+    const std::string_view row = text.substr(pos, eol - pos);
     pos = eol + 1;
     ++line;
+    if (!data_row(row)) continue;
+    if (!parse_plain_row(row, count, cells.data())) {
+      parse_checked_row(row, header, source, line, cells.data());
+    }
+    for (std::size_t c = 0; c < count; ++c) columns[c][row_index] = cells[c];
+    lines[row_index++] = line;
+  }
+}
+
+// Runs work(0..count-1), work(0) on the calling thread and the others on threads of their own;
+// rethrows the exception of the lowest index that failed.
+template <typename Work>
+void run_parallel(std::size_t count, Work work) {
+  std::vector<std::exception_ptr> errors(count);
+  auto guarded = [&](std::size_t k) {
+    try {
+      work(k);
+    } catch (...) {
+      errors[k] = std::current_exception();
+    }
+  };
+  std::vector<std::thread> pool;
+  for (std::size_t k = 1; k < count; ++k) pool.emplace_back(guarded, k);
+  guarded(0);
+  for (auto& t : pool) t.join();
+  for (const auto& e : errors) {
+    if (e) std::rethrow_exception(e);
+  }
+}
+
+// Below this many bytes of rows a trial is parsed on the calling thread alone.
+constexpr std::size_t kParallelParseBytes = 1 << 20;
+
+// Reads the header, then the data rows in up to hardware_concurrency() chunks of whole lines, each
+// on its own thread, in two passes: count each chunk's lines and rows, then parse every row
+// straight into its place in the trial's columns. The values do not depend on the thread count;
+// when several chunks are bad, the error reported is the first in the file, as a single-threaded
+// parse would report it.
+NumericCsv parse_numeric(std::string_view text, const std::string& source,
+                         const std::string& time_column) {
+  NumericCsv out;
+  std::size_t pos = 0;
+  int line = 0;
+  while (pos < text.size() && out.header.empty()) {
+    std::size_t eol = text.find('\n', pos);
+    if (eol == std::string_view::npos) eol = text.size();
+    const std::string_view row = text.substr(pos, eol - pos);
+    pos = std::min(eol + 1, text.size());
+    ++line;
     if (skipped(row)) continue;
-    if (out.header.empty()) {
-      out.header = split_line(std::string(row));
-      check_header(out.header, source, line);
-      // At most one row per remaining line: reserve once instead of regrowing a large buffer.
-      const size_t lines_left = 1 + std::count(text.begin() + std::min(pos, text.size()), text.end(), '\n');
-      out.values.reserve(lines_left * out.header.size());
-      continue;
-    }
-    const size_t columns = out.header.size();
-    const size_t cells = 1 + std::count(row.begin(), row.end(), ',');
-    const bool quoted = row.find('"') != std::string_view::npos;
-    if (!quoted && cells != columns) throw ragged(source, line, cells, columns);
-    std::vector<std::string> split;
-    if (quoted) {
-      split = split_line(std::string(row));
-      if (split.size() != columns) throw ragged(source, line, split.size(), columns);
-    }
-    size_t start = 0;
-    for (size_t c = 0; c < columns; ++c) {
-      std::string_view cell;
-      if (quoted) {
-        cell = split[c];
-      } else {
-        const size_t comma = std::min(row.find(',', start), row.size());
-        cell = trim_view(row.substr(start, comma - start));
-        start = comma + 1;
-      }
-      out.values.push_back(parse_number(cell, source, line, static_cast<int>(c), out.header[c]));
-    }
-    out.lines.push_back(line);
+    out.header = split_line(std::string(row));
+    check_header(out.header, source, line);
   }
   if (out.header.empty()) throw InputError(source + ": empty file, expected a header row");
+  const int columns = static_cast<int>(out.header.size());
+  for (int c = 0; c < columns; ++c) {
+    if (name_and_unit(out.header[c]).first == time_column) out.time_col = c;
+  }
+
+  const std::size_t bytes = text.size() - pos;
+  const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+  const std::size_t wanted =
+      bytes < kParallelParseBytes ? 1 : std::min<std::size_t>(threads, bytes / (kParallelParseBytes / 2));
+  std::vector<Chunk> chunks(1);
+  chunks[0].begin = pos;
+  for (std::size_t k = 1; k < wanted; ++k) {
+    const std::size_t eol = text.find('\n', std::max(pos + bytes * k / wanted, chunks.back().begin));
+    if (eol == std::string_view::npos) break;
+    chunks.back().end = eol + 1;
+    chunks.emplace_back().begin = eol + 1;
+  }
+  chunks.back().end = text.size();
+  run_parallel(chunks.size(), [&](std::size_t k) { count_lines_and_rows(text, chunks[k]); });
+  int rows = 0;
+  chunks[0].first_line = line + 1;
+  for (std::size_t k = 0; k < chunks.size(); ++k) {
+    if (k > 0) chunks[k].first_line = chunks[k - 1].first_line + chunks[k - 1].lines;
+    chunks[k].first_row = rows;
+    rows += chunks[k].rows;
+  }
+
+  out.channels.resize(rows, columns - (out.time_col >= 0 ? 1 : 0));
+  out.time.resize(out.time_col >= 0 ? rows : 0);
+  out.lines.resize(rows);
+  std::vector<double*> destination;
+  for (int c = 0, k = 0; c < columns; ++c) {
+    destination.push_back(c == out.time_col ? out.time.data() : out.channels.col(k++).data());
+  }
+  run_parallel(chunks.size(), [&](std::size_t k) {
+    parse_rows(text, chunks[k], out.header, source, destination, out.lines.data());
+  });
   return out;
 }
 
@@ -231,40 +375,35 @@ std::string at(const std::string& source, int line, int col) {
   return source + ":" + std::to_string(line) + ":" + std::to_string(col + 1);
 }
 
-Trial build_trial(const NumericCsv& csv, const std::string& source, const TrialCsvOptions& options) {
+Trial build_trial(NumericCsv&& csv, const std::string& source, const TrialCsvOptions& options) {
   const int columns = static_cast<int>(csv.header.size());
-  const int rows = static_cast<int>(csv.lines.size());
-  int time_col = -1;
-  for (int c = 0; c < columns; ++c) {
-    if (name_and_unit(csv.header[c]).first == options.time_column) time_col = c;
-  }
+  const int rows = csv.rows();
+  const int time_col = csv.time_col;
   if (time_col < 0 && options.sample_rate_hz <= 0.0) {
     throw InputError(source + ":1: no time column '" + options.time_column +
                      "'; give the sampling rate (--fs HZ)");
   }
   if (rows < 2) throw InputError(source + ": " + std::to_string(rows) + " data rows, need at least 2");
 
-  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>
-      all(csv.values.data(), rows, columns);
   Trial trial;
   trial.source = source;
-  trial.samples.resize(rows, columns - (time_col >= 0 ? 1 : 0));
-  for (int c = 0, k = 0; c < columns; ++c) {
+  for (int c = 0; c < columns; ++c) {
     if (c == time_col) continue;
     const auto [name, unit] = name_and_unit(csv.header[c]);
     trial.names.push_back(name);
     trial.units.push_back(unit);
-    trial.samples.col(k++) = all.col(c);
   }
+  trial.samples = std::move(csv.channels);
+  const Eigen::VectorXd& time = csv.time;
+  const std::vector<int>& lines = csv.lines;
   if (time_col < 0) {
     trial.sample_rate_hz = options.sample_rate_hz;
     return trial;
   }
 
-  const Eigen::VectorXd time = all.col(time_col);
   for (int r = 1; r < rows; ++r) {
     if (!(time(r) > time(r - 1))) {
-      throw InputError(at(source, csv.lines[r], time_col) + ": time must increase, got " +
+      throw InputError(at(source, lines[r], time_col) + ": time must increase, got " +
                        shortest(time(r)) + " after " + shortest(time(r - 1)));
     }
   }
@@ -273,7 +412,7 @@ Trial build_trial(const NumericCsv& csv, const std::string& source, const TrialC
     const double deviation = std::abs(time(r) - (time(0) + r * step));
     if (deviation > options.time_tolerance * step) {
       std::ostringstream msg;
-      msg << at(source, csv.lines[r], time_col) << ": non-uniform sampling: t = "
+      msg << at(source, lines[r], time_col) << ": non-uniform sampling: t = "
           << shortest(time(r)) << " s is " << deviation / step
           << " steps off the uniform grid of step " << step << " s (tolerance "
           << options.time_tolerance << " step)";
@@ -294,13 +433,14 @@ Trial build_trial(const NumericCsv& csv, const std::string& source, const TrialC
 
 }  // namespace
 
-Trial parse_trial_csv(const std::string& text, const std::string& source,
+Trial parse_trial_csv(std::string_view text, const std::string& source,
                       const TrialCsvOptions& options) {
-  return build_trial(parse_numeric(text, source), source, options);
+  return build_trial(parse_numeric(text, source, options.time_column), source, options);
 }
 
 Trial read_trial_csv(const std::string& path, const TrialCsvOptions& options) {
-  return parse_trial_csv(read_text_file(path), path, options);
+  const MappedText text(path);
+  return parse_trial_csv(text.view(), path, options);
 }
 
 std::string trial_to_csv(const Trial& trial, bool with_units) {

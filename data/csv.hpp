@@ -3,6 +3,7 @@
 // and the trial reader/writer built on it.
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "data/trial.hpp"
@@ -45,10 +46,12 @@ struct TrialCsvOptions {
 /// Parses a trial from CSV text: a header row, then every column except time becomes a channel. A
 /// header cell `name[unit]` (or `name (unit)`) sets the channel's unit. Every cell must be a finite
 /// number; time must increase uniformly within the tolerance. Errors name source:line:column.
-/// Cells are converted while the text is streamed once (no per-cell strings).
-Trial parse_trial_csv(const std::string& text, const std::string& source,
+/// Cells are converted in place (no per-cell strings), straight into the trial's columns, on up to
+/// hardware_concurrency() threads for texts over 1 MiB; results do not depend on the thread count.
+Trial parse_trial_csv(std::string_view text, const std::string& source,
                       const TrialCsvOptions& options = {});
-/// Reads a file and parses it with parse_trial_csv; a missing file is an InputError naming it.
+/// Reads a file (memory-mapped) and parses it with parse_trial_csv; a missing file is an
+/// InputError naming it.
 Trial read_trial_csv(const std::string& path, const TrialCsvOptions& options = {});
 
 /// CSV text of a trial: a `t` column in s then one column per channel, full double precision.

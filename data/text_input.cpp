@@ -1,5 +1,10 @@
 #include "data/text_input.hpp"
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <fstream>
 #include <limits>
 
@@ -14,6 +19,28 @@ std::string read_text_file(const std::string& path) {
     throw InputError(path + ": read failed");
   }
   return text;
+}
+
+MappedText::MappedText(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw InputError(path + ": cannot open (missing file or no permission)");
+  struct stat info {};
+  if (::fstat(fd, &info) == 0 && S_ISREG(info.st_mode) && info.st_size > 0) {
+    size_ = static_cast<std::size_t>(info.st_size);
+    map_ = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+    if (map_ == MAP_FAILED) map_ = nullptr;
+  }
+  ::close(fd);
+  if (map_ != nullptr) {
+    view_ = std::string_view(static_cast<const char*>(map_), size_);
+  } else {
+    copy_ = read_text_file(path);
+    view_ = copy_;
+  }
+}
+
+MappedText::~MappedText() {
+  if (map_ != nullptr) ::munmap(map_, size_);
 }
 
 std::string line_column(const std::string& text, std::size_t offset) {

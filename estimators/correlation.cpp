@@ -1,5 +1,6 @@
 #include "estimators/correlation.hpp"
 
+#include <algorithm>
 #include <limits>
 #include <string>
 
@@ -21,56 +22,150 @@ int smooth_fft_length(int minimum) {
                    " fits in an int");
 }
 
-PaddedSpectra::PaddedSpectra(const Eigen::Ref<const Eigen::MatrixXd>& signals, int max_lag,
-                             bool remove_mean)
-    : samples_(static_cast<int>(signals.rows())),
-      channels_(static_cast<int>(signals.cols())),
-      max_lag_(max_lag) {
+int block_fft_length(int samples, int span) {
+  if (samples < 1 || span < 0) {
+    throw InputError("block FFT length: need samples >= 1 and span >= 0, got " +
+                     std::to_string(samples) + " and " + std::to_string(span));
+  }
+  const long target = std::max(4L * span, 256L);
+  long n = 256;
+  while (n < target) n *= 2;
+  const long whole = static_cast<long>(samples) + span;
+  if (whole <= n) return smooth_fft_length(static_cast<int>(whole));
+  if (n > std::numeric_limits<int>::max()) throw InputError("block FFT length: span too long");
+  return static_cast<int>(n);
+}
+
+BlockedSignals::BlockedSignals(const Eigen::Ref<const Eigen::MatrixXd>& signals, int max_lag,
+                               bool remove_mean)
+    : max_lag_(max_lag) {
   if (max_lag < 0) {
     throw InputError("correlation: max_lag must be >= 0 samples, got " + std::to_string(max_lag));
   }
-  if (samples_ < 1 || channels_ < 1) {
+  if (signals.rows() < 1 || signals.cols() < 1) {
     throw InputError("correlation: need at least one sample and one channel, got " +
-                     std::to_string(samples_) + " x " + std::to_string(channels_));
+                     std::to_string(signals.rows()) + " x " + std::to_string(signals.cols()));
   }
-  fft_length_ = smooth_fft_length(samples_ + max_lag_);
   means_ = remove_mean ? Eigen::RowVectorXd(signals.colwise().mean())
-                       : Eigen::RowVectorXd::Zero(channels_);
-  Eigen::MatrixXd padded = Eigen::MatrixXd::Zero(fft_length_, channels_);
-  padded.topRows(samples_) = signals.rowwise() - means_;
-  RealFft fft(fft_length_, channels_);
-  spectra_ = fft.forward(padded);
+                       : Eigen::RowVectorXd::Zero(signals.cols());
+  centred_ = signals.rowwise() - means_;
 }
 
-Eigen::MatrixXd PaddedSpectra::correlate(const std::vector<ChannelPair>& pairs) const {
+namespace {
+
+// Distinct values of `v` in increasing order, and each value's position among them.
+std::vector<int> distinct(std::vector<int> v) {
+  std::sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+  return v;
+}
+int position(const std::vector<int>& sorted, int value) {
+  return static_cast<int>(std::lower_bound(sorted.begin(), sorted.end(), value) - sorted.begin());
+}
+
+}  // namespace
+
+Eigen::MatrixXd BlockedSignals::correlate(const std::vector<ChannelPair>& pairs) const {
   const int count = static_cast<int>(pairs.size());
   const int lags = 2 * max_lag_ + 1;
+  const int s = samples();
   if (count == 0) return Eigen::MatrixXd(lags, 0);
-  // R_pq[f] = conj(X_p[f]) X_q[f] is the DFT of r(d) = sum_k p(k) q(k + d), stored at d mod n;
-  // n >= S + L keeps lags |d| <= L free of circular wrap-around.
-  Eigen::MatrixXcd products(spectra_.rows(), count);
-  for (int c = 0; c < count; ++c) {
-    const ChannelPair& pair = pairs[c];
-    if (pair.first < 0 || pair.first >= channels_ || pair.second < 0 || pair.second >= channels_) {
+  std::vector<int> firsts, seconds;
+  for (const ChannelPair& pair : pairs) {
+    if (pair.first < 0 || pair.first >= channels() || pair.second < 0 ||
+        pair.second >= channels()) {
       throw InputError("correlation: channel pair (" + std::to_string(pair.first) + ", " +
                        std::to_string(pair.second) + ") out of range 0.." +
-                       std::to_string(channels_ - 1));
+                       std::to_string(channels() - 1));
     }
-    products.col(c) = spectra_.col(pair.first).conjugate().cwiseProduct(spectra_.col(pair.second));
+    firsts.push_back(pair.first);
+    seconds.push_back(pair.second);
   }
-  RealFft fft(fft_length_, count);
-  const Eigen::MatrixXd circular = fft.inverse(products);
-  Eigen::MatrixXd phi(lags, count);
-  const double scale = 1.0 / samples_;
-  // Row d + L: d >= 0 from the head of the circular result, d < 0 from its tail.
-  phi.bottomRows(max_lag_ + 1) = circular.topRows(max_lag_ + 1) * scale;
-  phi.topRows(max_lag_) = circular.bottomRows(max_lag_) * scale;
-  return phi;
+  firsts = distinct(firsts);
+  seconds = distinct(seconds);
+  // Block b: p over [b B, b B + B) zero-padded to n, q over [b B - L, b B + B + L) (zero outside
+  // the record). With n >= B + 2L the circular correlation c(m) = sum_k p_b(k) q_b(k + m) has no
+  // wrap-around for m = 0..2L and holds sum_k p(bB + k) q(bB + k + m - L): lag d = m - L.
+  const int n = block_fft_length(s, 2 * max_lag_);
+  const int block = n - 2 * max_lag_;
+  RealFft first_fft(n, static_cast<int>(firsts.size()));
+  RealFft second_fft(n, static_cast<int>(seconds.size()));
+  Eigen::MatrixXd p_block(n, firsts.size());
+  Eigen::MatrixXd q_block(n, seconds.size());
+  Eigen::MatrixXcd sums = Eigen::MatrixXcd::Zero(first_fft.bins(), count);
+  for (int start = 0; start < s; start += block) {
+    const int length = std::min(block, s - start);
+    p_block.setZero();
+    for (std::size_t c = 0; c < firsts.size(); ++c) {
+      p_block.col(c).head(length) = centred_.col(firsts[c]).segment(start, length);
+    }
+    // q's window [start - L, start - L + n) clipped to the record.
+    const int from = std::max(start - max_lag_, 0);
+    const int to = std::min(start - max_lag_ + n, s);
+    q_block.setZero();
+    for (std::size_t c = 0; c < seconds.size(); ++c) {
+      q_block.col(c).segment(from - (start - max_lag_), to - from) =
+          centred_.col(seconds[c]).segment(from, to - from);
+    }
+    const Eigen::MatrixXcd p_spectra = first_fft.forward(p_block);
+    const Eigen::MatrixXcd q_spectra = second_fft.forward(q_block);
+    for (int c = 0; c < count; ++c) {
+      sums.col(c) += p_spectra.col(position(firsts, pairs[c].first)).conjugate().cwiseProduct(
+          q_spectra.col(position(seconds, pairs[c].second)));
+    }
+  }
+  RealFft inverse(n, count);
+  return inverse.inverse(sums).topRows(lags) / static_cast<double>(s);
+}
+
+Eigen::MatrixXd BlockedSignals::convolve(const Eigen::Ref<const Eigen::MatrixXd>& kernels,
+                                         int first_lag, int outputs) const {
+  const int taps = static_cast<int>(kernels.rows());
+  if (outputs < 1 || kernels.cols() % outputs != 0 || kernels.cols() / outputs > channels() ||
+      taps < 1) {
+    throw InputError("convolution: " + std::to_string(kernels.cols()) + " kernels of " +
+                     std::to_string(taps) + " taps do not make " + std::to_string(outputs) +
+                     " outputs of at most " + std::to_string(channels()) + " channels");
+  }
+  const int inputs = static_cast<int>(kernels.cols()) / outputs;
+  const int s = samples();
+  // Block b: x over [b B, b B + B) zero-padded to n; its linear convolution with a kernel of K taps
+  // (length B + K - 1 <= n, so no wrap-around) lands on t = b B + first_lag + (0..B+K-2).
+  const int n = block_fft_length(s, taps - 1);
+  const int block = n - taps + 1;
+  RealFft kernel_fft(n, inputs * outputs);
+  Eigen::MatrixXd padded = Eigen::MatrixXd::Zero(n, inputs * outputs);
+  padded.topRows(taps) = kernels;
+  const Eigen::MatrixXcd kernel_spectra = kernel_fft.forward(padded);
+  RealFft input_fft(n, inputs);
+  RealFft output_fft(n, outputs);
+  Eigen::MatrixXd x_block(n, inputs);
+  Eigen::MatrixXcd products(input_fft.bins(), outputs);
+  Eigen::MatrixXd y = Eigen::MatrixXd::Zero(s, outputs);
+  for (int start = 0; start < s; start += block) {
+    const int length = std::min(block, s - start);
+    x_block.setZero();
+    x_block.topRows(length) = centred_.block(start, 0, length, inputs);
+    const Eigen::MatrixXcd x_spectra = input_fft.forward(x_block);
+    products.setZero();
+    for (int j = 0; j < outputs; ++j) {
+      for (int i = 0; i < inputs; ++i) {
+        products.col(j) += x_spectra.col(i).cwiseProduct(kernel_spectra.col(i + inputs * j));
+      }
+    }
+    const Eigen::MatrixXd z = output_fft.inverse(products);
+    // z(m), m = 0..length+K-2, is y at t = start + first_lag + m; keep t inside the record.
+    const long lo = std::max(0L, -(static_cast<long>(start) + first_lag));
+    const long hi = std::min(static_cast<long>(length) + taps - 1,
+                             static_cast<long>(s) - start - first_lag);
+    if (hi > lo) y.middleRows(start + first_lag + lo, hi - lo) += z.middleRows(lo, hi - lo);
+  }
+  return y;
 }
 
 Correlations correlate(const Eigen::Ref<const Eigen::MatrixXd>& signals,
                        const CorrelationOptions& options) {
-  const PaddedSpectra spectra(signals, options.max_lag, options.remove_mean);
+  const BlockedSignals spectra(signals, options.max_lag, options.remove_mean);
   const int channels = spectra.channels();
   std::vector<ChannelPair> pairs;
   for (int p = 0; p < channels; ++p) {

@@ -1,7 +1,7 @@
 #pragma once
-// Biased auto- and cross-correlations of sampled channels through zero-padded FFTs
-// (Perreault et al. 1999, eq 8), and the padded spectra they come from, which the IRF estimator
-// reuses for convolutions.
+// Biased auto- and cross-correlations of sampled channels through blocked FFTs
+// (Perreault et al. 1999, eq 8), and the blocked convolutions the IRF estimator uses to predict
+// outputs.
 //
 // Convention (as scipy/numpy users write it, and as the shared reference cases use it):
 //   phi_pq(d) = 1/S sum_k p(k) q(k + d),   d = -L..L samples,
@@ -29,38 +29,50 @@ struct CorrelationOptions {
 /// Smallest FFT length >= `minimum` whose prime factors are 2, 3, 5 and 7 only (fast in FFTW).
 int smooth_fft_length(int minimum);
 
-/// One batched real FFT of all channels, each (optionally) mean-removed and zero-padded to
-/// `fft_length() >= samples + max_lag`, so that products of these spectra give linear (not
-/// circular) correlations for lags |d| <= max_lag and linear convolutions with kernels supported
-/// on [-max_lag, max_lag] samples. Holds the spectra only: cheap to query many pair sets.
-class PaddedSpectra {
- public:
-  /// `signals`: (S x C) one channel per column, S >= 1 samples. Throws InputError when
-  /// max_lag < 0 or when there is no sample or no channel.
-  PaddedSpectra(const Eigen::Ref<const Eigen::MatrixXd>& signals, int max_lag,
-                bool remove_mean = true);
+/// FFT length for block (overlap-add) products whose result spans `span` samples (>= 0) over a
+/// record of `samples`: the smallest power of two >= max(4 span, 256), or the smooth length
+/// >= samples + span when that is shorter (then the whole record is one block).
+int block_fft_length(int samples, int span);
 
-  int samples() const { return samples_; }        ///< S, samples
-  int channels() const { return channels_; }      ///< C
-  int max_lag() const { return max_lag_; }        ///< L, samples
-  int fft_length() const { return fft_length_; }  ///< n >= S + L, smooth
+/// A record of C channels, optionally mean-removed, correlated and convolved in blocks: FFTs of a
+/// fixed length n = block_fft_length(S, span) ~ 4-8 x the lag span (not ~S), whose per-block
+/// spectral products are summed (overlap-add). The work is O(S log L) per channel, and the buffers
+/// are a few hundred kB whatever the record's length (a 10-minute 1 kHz record with 600 lags uses
+/// 8192-point FFTs instead of ~600,000-point ones: no large buffers to page-fault, and the
+/// transforms run in cache). The results are the linear (never circular) sums of eq 8.
+class BlockedSignals {
+ public:
+  /// `signals`: (S x C) one channel per column, S >= 1 samples; `max_lag` L >= 0 samples.
+  /// Throws InputError when max_lag < 0 or when there is no sample or no channel.
+  BlockedSignals(const Eigen::Ref<const Eigen::MatrixXd>& signals, int max_lag,
+                 bool remove_mean = true);
+
+  int samples() const { return static_cast<int>(centred_.rows()); }   ///< S, samples
+  int channels() const { return static_cast<int>(centred_.cols()); }  ///< C
+  int max_lag() const { return max_lag_; }                            ///< L, samples
   /// (C) channel means that were removed (zeros when remove_mean is false), channel units.
   const Eigen::RowVectorXd& means() const { return means_; }
-  /// (n/2+1 x C) one-sided spectra X_c[f] = sum_t x_c(t) exp(-2 pi i f t / n).
-  const Eigen::MatrixXcd& spectra() const { return spectra_; }
+  /// (S x C) the channels with their means removed, channel units.
+  const Eigen::MatrixXd& centred() const { return centred_; }
 
-  /// ((2L+1) x P) column p holds phi_{pairs[p].first, pairs[p].second}(d) at row d + L, from
-  /// conj(X_p) X_q and one batched inverse FFT of all P products (eq 8). Throws InputError on a
-  /// channel index out of range.
+  /// ((2L+1) x P) column p holds phi_{pairs[p].first, pairs[p].second}(d) at row d + L (eq 8),
+  /// from the sum over blocks of conj(X_p) Q_q (X_p a block of p zero-padded, Q_q the matching
+  /// window of q widened by L on each side) and one batched inverse FFT of all P sums. Throws
+  /// InputError on a channel index out of range.
   Eigen::MatrixXd correlate(const std::vector<ChannelPair>& pairs) const;
 
+  /// (S x M) y_j(t) = sum_i sum_{a=0}^{K-1} kernels(a, i + N j) x_i(t - first_lag - a) for
+  /// t = 0..S-1, with x_i channel i (i = 0..N-1, N = kernels.cols() / outputs) and zero outside
+  /// the record: the discrete convolution of eq 1 with kernels supported on lags
+  /// first_lag..first_lag+K-1 samples, by overlap-add of blocks. Throws InputError when the
+  /// kernel columns do not match `outputs` and the channels.
+  Eigen::MatrixXd convolve(const Eigen::Ref<const Eigen::MatrixXd>& kernels, int first_lag,
+                           int outputs) const;
+
  private:
-  int samples_ = 0;
-  int channels_ = 0;
   int max_lag_ = 0;
-  int fft_length_ = 0;
   Eigen::RowVectorXd means_;
-  Eigen::MatrixXcd spectra_;
+  Eigen::MatrixXd centred_;
 };
 
 /// All auto- and cross-correlations of a set of C channels over lags -L..L.
@@ -77,9 +89,9 @@ struct Correlations {
   double at(int p, int q, int lag) const { return phi(lag + max_lag, p + channels * q); }
 };
 
-/// Biased correlations (eq 8) of every ordered pair of columns of `signals` (S x C), through one
-/// batched forward FFT, the C(C+1)/2 products p <= q and one batched inverse FFT; the pairs q > p
-/// follow from phi_qp(d) = phi_pq(-d). O(C^2 n log n) with n ~ S + L, never O(S L).
+/// Biased correlations (eq 8) of every ordered pair of columns of `signals` (S x C): the C(C+1)/2
+/// pairs p <= q by BlockedSignals::correlate; the pairs q > p follow from phi_qp(d) = phi_pq(-d).
+/// O(C^2 S log L), never O(S L).
 Correlations correlate(const Eigen::Ref<const Eigen::MatrixXd>& signals,
                        const CorrelationOptions& options);
 

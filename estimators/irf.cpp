@@ -10,7 +10,6 @@
 #include <vector>
 
 #include "estimators/correlation.hpp"
-#include "estimators/fft.hpp"
 #include "estimators/spectral_projection.hpp"
 
 namespace stiffid::estimators {
@@ -216,31 +215,18 @@ Solution solve_pseudo_inverse(const Eigen::MatrixXd& psi, const Eigen::MatrixXd&
   return s;
 }
 
-// Predicted outputs (S x M): dt * sum_i h_ji * x_i as products of padded spectra. The kernel is
-// stored at tau mod n; n >= S + max(|A|, |B|) keeps the first S samples free of wrap-around.
-Eigen::MatrixXd predict(const PaddedSpectra& spectra, const Eigen::MatrixXd& coefficients,
+// Predicted outputs (S x M): dt * sum_i h_ji * x_i, the blocked convolution of the mean-removed
+// inputs (the first `inputs` channels of `signals`) with the kernels dt h_ji over lags A..B.
+Eigen::MatrixXd predict(const BlockedSignals& signals, const Eigen::MatrixXd& coefficients,
                         int inputs, int outputs, int first_lag, int lags) {
-  const int n = spectra.fft_length();
-  Eigen::MatrixXd kernels = Eigen::MatrixXd::Zero(n, static_cast<Eigen::Index>(inputs) * outputs);
+  Eigen::MatrixXd kernels(lags, static_cast<Eigen::Index>(inputs) * outputs);
   for (int j = 0; j < outputs; ++j) {
     for (int i = 0; i < inputs; ++i) {
-      for (int a = 0; a < lags; ++a) {
-        const int tau = first_lag + a;
-        kernels((tau % n + n) % n, i + inputs * j) =
-            coefficients(static_cast<Eigen::Index>(i) * lags + a, j);
-      }
+      kernels.col(i + inputs * j) =
+          coefficients.col(j).segment(static_cast<Eigen::Index>(i) * lags, lags);
     }
   }
-  RealFft forward(n, inputs * outputs);
-  const Eigen::MatrixXcd kernel_spectra = forward.forward(kernels);
-  Eigen::MatrixXcd products = Eigen::MatrixXcd::Zero(kernel_spectra.rows(), outputs);
-  for (int j = 0; j < outputs; ++j) {
-    for (int i = 0; i < inputs; ++i) {
-      products.col(j) += spectra.spectra().col(i).cwiseProduct(kernel_spectra.col(i + inputs * j));
-    }
-  }
-  RealFft inverse(n, outputs);
-  return inverse.inverse(products).topRows(spectra.samples());
+  return signals.convolve(kernels, first_lag, outputs);
 }
 
 }  // namespace
@@ -272,7 +258,7 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
 
   Eigen::MatrixXd signals(samples, n_in + n_out);
   signals << inputs, outputs;
-  const PaddedSpectra spectra(signals, max_lag, /*remove_mean=*/true);
+  const BlockedSignals spectra(signals, max_lag, /*remove_mean=*/true);
   std::vector<ChannelPair> pairs;
   for (int i = 0; i < n_in; ++i) {
     for (int k = i; k < n_in; ++k) pairs.push_back({i, k});

@@ -88,7 +88,7 @@ struct IrfResult {
 
 /// Estimates the IRFs between N inputs (S x N) and M outputs (S x M) sampled at `sample_rate_hz`
 /// (Hz) for lags options.first_lag..last_lag. Correlations come from one batched FFT of all
-/// channels (correlation.hpp); the predicted outputs from products with the same padded spectra.
+/// channels (correlation.hpp); the predicted outputs by blocked (overlap-add) convolution of the same mean-removed inputs.
 ///
 /// Pseudo-inverse (Westwick & Kearney 1997): Psi = V diag(w) V^T; eigenvector k contributes
 /// c_kj = (v_k^T Phi_j)^2 / w_k / phi_{y_j y_j}(0) of the variance of output j (eq 19-21 on the

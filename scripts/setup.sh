@@ -7,7 +7,7 @@ packages=(
   build-essential cmake pkg-config
   libeigen3-dev libfftw3-dev libceres-dev libnlopt-dev libnlopt-cxx-dev coinor-libipopt-dev
   libboost-test-dev libboost-math-dev libboost-dev
-  libcli11-dev nlohmann-json3-dev libsqlite3-dev libtbb-dev
+  libcli11-dev nlohmann-json3-dev libfast-float-dev libsqlite3-dev libtbb-dev
   libopenmpi-dev openmpi-bin
   python3-numpy python3-scipy
 )

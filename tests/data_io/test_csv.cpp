@@ -1,6 +1,10 @@
 #include <boost/test/unit_test.hpp>
 #include <filesystem>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
+#include <string>
 
 #include "data/csv.hpp"
 #include "data/error.hpp"
@@ -106,4 +110,63 @@ BOOST_AUTO_TEST_CASE(atomic_write_leaves_no_temporary_and_fails_cleanly) {
   BOOST_CHECK_EQUAL(files, 1);
   BOOST_CHECK_THROW(d::write_file_atomically("/nonexistent/dir/out.json", "{}"), stiffid::InputError);
   std::filesystem::remove_all(dir);
+}
+
+namespace {
+// A uniformly sampled trial large enough to be parsed in several chunks (> 1 MiB of rows), as
+// text: t at 1 kHz, then `a` = row index and `b` = a value with a long decimal expansion.
+std::string large_trial_text(int rows) {
+  std::string text = "t,a,b\n";
+  char line[96];
+  for (int r = 0; r < rows; ++r) {
+    std::snprintf(line, sizeof line, "%.17g,%d,%.17g\n", r * 1e-3, r, std::sin(0.001 * r) / 3.0);
+    text += line;
+  }
+  return text;
+}
+}  // namespace
+
+BOOST_AUTO_TEST_CASE(large_trials_parse_in_chunks_to_the_same_values_as_a_row_by_row_read) {
+  const int rows = 60000;  // ~2.5 MB: several chunks on any machine with more than one core
+  const std::string text = large_trial_text(rows);
+  const auto trial = d::parse_trial_csv(text, "big.csv");
+  BOOST_REQUIRE_EQUAL(trial.sample_count(), rows);
+  BOOST_CHECK_CLOSE(trial.sample_rate_hz, 1000.0, 1e-9);
+  bool exact = true;
+  for (int r = 0; r < rows; ++r) {
+    // strtod is the independent reference for the text the writer printed.
+    char cell[40];
+    std::snprintf(cell, sizeof cell, "%.17g", std::sin(0.001 * r) / 3.0);
+    exact = exact && trial.samples(r, 0) == r && trial.samples(r, 1) == std::strtod(cell, nullptr);
+  }
+  BOOST_CHECK(exact);
+}
+
+BOOST_AUTO_TEST_CASE(in_a_large_trial_the_first_bad_cell_in_the_file_is_reported) {
+  // Two bad cells, one near the end and one near the start: whatever the chunking, the message
+  // names the earlier one, with its true line number (the header is line 2 after a comment).
+  std::string text = "# comment\n" + large_trial_text(60000);
+  const auto replace_row = [&](int row, const std::string& with) {
+    std::size_t pos = 0;
+    for (int l = 0; l < row + 2; ++l) pos = text.find('\n', pos) + 1;  // start of data row `row`
+    text.replace(pos, text.find('\n', pos) - pos, with);
+  };
+  replace_row(55000, "55,55,oops");
+  replace_row(1234, "1.234,1234,x");
+  expect_error(text, {"trial.csv:1237:3", "'x'"});
+  std::string ragged = "# comment\n" + large_trial_text(60000);
+  std::size_t pos = 0;
+  for (int l = 0; l < 40000 + 2; ++l) pos = ragged.find('\n', pos) + 1;
+  ragged.insert(ragged.find('\n', pos), ",9");
+  expect_error(ragged, {"trial.csv:40003", "ragged", "4 cells, expected 3"});
+}
+
+BOOST_AUTO_TEST_CASE(blanks_around_cells_and_a_leading_plus_are_accepted) {
+  const auto trial = d::parse_trial_csv("t , x\n 0 ,\t+1.5 \n0.5, -2e-3\r\n1,+.25\n", "p.csv");
+  BOOST_CHECK_EQUAL(trial.samples(0, 0), 1.5);
+  BOOST_CHECK_EQUAL(trial.samples(1, 0), -2e-3);
+  BOOST_CHECK_EQUAL(trial.samples(2, 0), 0.25);
+  expect_error("t,x\n0,1\n0.1,+-2\n", {"trial.csv:3:2", "'+-2'"});
+  expect_error("t,x\n0,1\n0.1,+\n", {"trial.csv:3:2"});
+  expect_error("t,x\n0,1\n0.1,1 2\n", {"trial.csv:3:2", "'1 2'"});
 }

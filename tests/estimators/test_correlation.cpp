@@ -1,6 +1,8 @@
 #include <boost/test/unit_test.hpp>
 #include <random>
 #include <string>
+#include <tuple>
+#include <cmath>
 
 #include "data/csv.hpp"
 #include "data/error.hpp"
@@ -81,13 +83,62 @@ BOOST_AUTO_TEST_CASE(matches_numpy_fixture) {
 BOOST_AUTO_TEST_CASE(selected_pairs_equal_the_all_pairs_result) {
   const Eigen::MatrixXd x = random_signals(200, 4, 3);
   const est::Correlations all = est::correlate(x, {15, true});
-  const est::PaddedSpectra spectra(x, 15);
-  BOOST_CHECK_GE(spectra.fft_length(), 200 + 15);
+  const est::BlockedSignals spectra(x, 15);
   const Eigen::MatrixXd some = spectra.correlate({{3, 1}, {2, 2}, {0, 3}});
   BOOST_CHECK_SMALL((some.col(0) - all.pair(3, 1)).cwiseAbs().maxCoeff(), 1e-13);
   BOOST_CHECK_SMALL((some.col(1) - all.pair(2, 2)).cwiseAbs().maxCoeff(), 1e-13);
   BOOST_CHECK_SMALL((some.col(2) - all.pair(0, 3)).cwiseAbs().maxCoeff(), 1e-13);
   BOOST_CHECK_THROW(spectra.correlate({{0, 4}}), stiffid::InputError);
+}
+
+BOOST_AUTO_TEST_CASE(many_blocks_match_the_direct_sum) {
+  // 5000 samples with L = 40: 512-point FFTs of 432-sample blocks, so 12 blocks, a short last block
+  // and lags that cross every block boundary.
+  BOOST_CHECK_EQUAL(est::block_fft_length(5000, 80), 512);
+  BOOST_CHECK_EQUAL(est::block_fft_length(100, 80), 180);  // one block: smooth(100 + 80)
+  const Eigen::MatrixXd x = random_signals(5000, 3, 11);
+  const est::BlockedSignals blocked(x, 40);
+  const Eigen::MatrixXd phi = blocked.correlate({{0, 1}, {2, 0}, {1, 1}});
+  const int pairs[3][2] = {{0, 1}, {2, 0}, {1, 1}};
+  for (int c = 0; c < 3; ++c) {
+    for (int d = -40; d <= 40; ++d) {
+      BOOST_CHECK_SMALL(phi(d + 40, c) - direct(x, pairs[c][0], pairs[c][1], d, true), 1e-11);
+    }
+  }
+}
+
+BOOST_AUTO_TEST_CASE(blocked_convolution_matches_the_direct_sum) {
+  // y_j(t) = sum_i sum_a g_ji(a) x_i(t - A - a), x zero outside the record, for causal,
+  // two-sided and purely anticausal kernels, single and many blocks.
+  for (const auto& [samples, first, taps] :
+       {std::tuple{3000, -7, 30}, std::tuple{3000, 5, 100}, std::tuple{60, -20, 9},
+        std::tuple{2500, -300, 120}}) {
+    const Eigen::MatrixXd x = random_signals(samples, 2, 5 + taps);
+    const est::BlockedSignals blocked(x, 0);
+    std::mt19937_64 rng(taps);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    Eigen::MatrixXd g(taps, 4);  // column i + 2 j
+    for (int k = 0; k < g.size(); ++k) g(k) = normal(rng);
+    const Eigen::MatrixXd y = blocked.convolve(g, first, 2);
+    BOOST_REQUIRE_EQUAL(y.rows(), samples);
+    const Eigen::MatrixXd& c = blocked.centred();
+    double worst = 0.0;
+    for (int j = 0; j < 2; ++j) {
+      for (int t = 0; t < samples; ++t) {
+        double sum = 0.0;
+        for (int i = 0; i < 2; ++i) {
+          for (int a = 0; a < taps; ++a) {
+            const int u = t - first - a;
+            if (u >= 0 && u < samples) sum += g(a, i + 2 * j) * c(u, i);
+          }
+        }
+        worst = std::max(worst, std::abs(y(t, j) - sum));
+      }
+    }
+    BOOST_CHECK_SMALL(worst, 1e-11);
+  }
+  const est::BlockedSignals blocked(random_signals(50, 2, 1), 0);
+  BOOST_CHECK_THROW(blocked.convolve(Eigen::MatrixXd::Zero(5, 3), 0, 2), stiffid::InputError);
 }
 
 BOOST_AUTO_TEST_CASE(smooth_fft_lengths_have_only_factors_2_3_5_7) {
