@@ -12,33 +12,67 @@ int savitzky_golay_window_samples(double window_s, double sample_rate_hz) {
   return 2 * static_cast<int>(std::lround(window_s * sample_rate_hz / 2.0)) + 1;
 }
 
-Eigen::VectorXd savitzky_golay_coefficients(int window, int order, int derivative, double step,
-                                            int position) {
+namespace {
+
+void check_window(int window, int order, int derivative, double step, int position) {
   if (window < 1 || order < 0 || order >= window || derivative < 0 || !(step > 0.0) ||
       position < 0 || position >= window) {
     throw InputError("Savitzky-Golay: need window >= 1, 0 <= order < window (got window " +
                      std::to_string(window) + ", order " + std::to_string(order) +
                      "), derivative >= 0, step > 0 and the position inside the window");
   }
-  if (derivative > order) return Eigen::VectorXd::Zero(window);
-  // Polynomial in z = (i - position) / scale; scaling keeps the Vandermonde matrix well
-  // conditioned. The derivative-th coefficient times derivative! / (scale step)^derivative.
-  const double scale = std::max(1.0, (window - 1) / 2.0);
+}
+
+// The least-squares polynomial through a window, in z = (i - (window - 1) / 2) / scale with
+// scale = max(1, (window - 1) / 2) (|z| <= 1 keeps the Vandermonde matrix well conditioned):
+// its coefficients are a = fit x, fit ((order + 1) x window). One factorization serves every
+// position and derivative: the fitted polynomial does not depend on where it is evaluated.
+struct PolynomialFit {
+  double scale = 1.0;
+  Eigen::MatrixXd fit;
+};
+
+PolynomialFit polynomial_fit(int window, int order) {
+  PolynomialFit f;
+  f.scale = std::max(1.0, (window - 1) / 2.0);
+  const double centre = (window - 1) / 2.0;
   Eigen::MatrixXd v(window, order + 1);
   for (int i = 0; i < window; ++i) {
-    const double z = (i - position) / scale;
+    const double z = (i - centre) / f.scale;
     double p = 1.0;
     for (int k = 0; k <= order; ++k) {
       v(i, k) = p;
       p *= z;
     }
   }
-  const Eigen::MatrixXd pinv =
-      v.colPivHouseholderQr().solve(Eigen::MatrixXd::Identity(window, window));
-  double factor = 1.0;
-  for (int k = 2; k <= derivative; ++k) factor *= k;
-  factor /= std::pow(scale * step, derivative);
-  return pinv.row(derivative).transpose() * factor;
+  f.fit = v.colPivHouseholderQr().solve(Eigen::MatrixXd::Identity(window, window));
+  return f;
+}
+
+// Weights of the derivative-th derivative at sample `position`:
+// sum_{k >= d} k! / (k - d)! z^(k - d) fit.row(k) / (scale step)^d.
+Eigen::VectorXd evaluate(const PolynomialFit& f, int derivative, double step, int position) {
+  const int window = static_cast<int>(f.fit.cols());
+  const int order = static_cast<int>(f.fit.rows()) - 1;
+  Eigen::VectorXd c = Eigen::VectorXd::Zero(window);
+  if (derivative > order) return c;
+  const double z = (position - (window - 1) / 2.0) / f.scale;
+  double power = 1.0;  // z^(k - d)
+  for (int k = derivative; k <= order; ++k) {
+    double falling = 1.0;  // k! / (k - d)!
+    for (int m = 0; m < derivative; ++m) falling *= k - m;
+    c += (falling * power) * f.fit.row(k).transpose();
+    power *= z;
+  }
+  return c / std::pow(f.scale * step, derivative);
+}
+
+}  // namespace
+
+Eigen::VectorXd savitzky_golay_coefficients(int window, int order, int derivative, double step,
+                                            int position) {
+  check_window(window, order, derivative, step, position);
+  return evaluate(polynomial_fit(window, order), derivative, step, position);
 }
 
 SavitzkyGolayResult savitzky_golay(const Eigen::Ref<const Eigen::MatrixXd>& x,
@@ -63,21 +97,18 @@ SavitzkyGolayResult savitzky_golay(const Eigen::Ref<const Eigen::MatrixXd>& x,
   const int half = w / 2;
   SavitzkyGolayResult r;
   r.window_samples = w;
+  const PolynomialFit fit = polynomial_fit(w, options.polynomial_order);
   Eigen::MatrixXd* out[3] = {&r.value, &r.first_derivative, &r.second_derivative};
   for (int d = 0; d < 3; ++d) {
     Eigen::MatrixXd& y = *out[d];
     y.resize(samples, x.cols());
-    const Eigen::VectorXd centre =
-        savitzky_golay_coefficients(w, options.polynomial_order, d, step, half);
+    const Eigen::VectorXd centre = evaluate(fit, d, step, half);
     for (int i = half; i < samples - half; ++i) {
       y.row(i) = centre.transpose() * x.middleRows(i - half, w);
     }
     for (int pos = 0; pos < half; ++pos) {
-      const Eigen::VectorXd c = savitzky_golay_coefficients(w, options.polynomial_order, d, step, pos);
-      y.row(pos) = c.transpose() * x.topRows(w);
-      const Eigen::VectorXd e =
-          savitzky_golay_coefficients(w, options.polynomial_order, d, step, w - 1 - pos);
-      y.row(samples - 1 - pos) = e.transpose() * x.bottomRows(w);
+      y.row(pos) = evaluate(fit, d, step, pos).transpose() * x.topRows(w);
+      y.row(samples - 1 - pos) = evaluate(fit, d, step, w - 1 - pos).transpose() * x.bottomRows(w);
     }
   }
   return r;

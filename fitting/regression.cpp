@@ -110,15 +110,19 @@ Eigen::MatrixXd solve_regression(const Eigen::MatrixXd& phi, const Eigen::Matrix
     if (scale(c) == 0.0) throw InputError(what + ": singular regressors (a regressor is all zero)");
   }
   const Eigen::MatrixXd scaled = phi * scale.cwiseInverse().asDiagonal();
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinU | Eigen::ComputeThinV);
-  const Eigen::VectorXd sv = svd.singularValues();
+  // Householder QR of the (rows x p) scaled regressors; their singular values are those of the
+  // p x p triangle R, so the condition check needs only R's SVD (no p x rows factor U).
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(scaled);
+  const Eigen::Index p = phi.cols();
+  const Eigen::MatrixXd r = qr.matrixQR().topRows(p).triangularView<Eigen::Upper>();
+  const Eigen::VectorXd sv = Eigen::JacobiSVD<Eigen::MatrixXd>(r).singularValues();
   if (sv(sv.size() - 1) < min_rcond * sv(0)) {
     std::ostringstream m;
     m << what << ": singular regressors (reciprocal condition " << sv(sv.size() - 1) / sv(0)
       << "; perturbation directions must span the plane)";
     throw InputError(m.str());
   }
-  return scale.cwiseInverse().asDiagonal() * svd.solve(targets);
+  return scale.cwiseInverse().asDiagonal() * qr.solve(targets);
 }
 
 double detect_onset_s(const data::Trial& trial) {
