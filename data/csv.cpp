@@ -8,14 +8,13 @@
 #include <iomanip>
 #include <set>
 #include <sstream>
-#include <thread>
-#include <exception>
 
 #include <fast_float/fast_float.h>
 
 #include "data/error.hpp"
 #include "data/text_input.hpp"
 #include "data/output.hpp"
+#include "data/parallel.hpp"
 
 namespace stiffid::data {
 namespace {
@@ -286,32 +285,11 @@ void parse_rows(std::string_view text, const Chunk& chunk, const std::vector<std
   }
 }
 
-// Runs work(0..count-1), work(0) on the calling thread and the others on threads of their own;
-// rethrows the exception of the lowest index that failed.
-template <typename Work>
-void run_parallel(std::size_t count, Work work) {
-  std::vector<std::exception_ptr> errors(count);
-  auto guarded = [&](std::size_t k) {
-    try {
-      work(k);
-    } catch (...) {
-      errors[k] = std::current_exception();
-    }
-  };
-  std::vector<std::thread> pool;
-  for (std::size_t k = 1; k < count; ++k) pool.emplace_back(guarded, k);
-  guarded(0);
-  for (auto& t : pool) t.join();
-  for (const auto& e : errors) {
-    if (e) std::rethrow_exception(e);
-  }
-}
-
 // Below this many bytes of rows a trial is parsed on the calling thread alone.
 constexpr std::size_t kParallelParseBytes = 1 << 20;
 
-// Reads the header, then the data rows in up to hardware_concurrency() chunks of whole lines, each
-// on its own thread, in two passes: count each chunk's lines and rows, then parse every row
+// Reads the header, then the data rows in up to max_threads() chunks of whole lines, in parallel,
+// in two passes: count each chunk's lines and rows, then parse every row
 // straight into its place in the trial's columns. The values do not depend on the thread count;
 // when several chunks are bad, the error reported is the first in the file, as a single-threaded
 // parse would report it.
@@ -337,9 +315,10 @@ NumericCsv parse_numeric(std::string_view text, const std::string& source,
   }
 
   const std::size_t bytes = text.size() - pos;
-  const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+  // Chunks: one per thread (their boundaries do not change the values parsed).
+  const auto threads = static_cast<std::size_t>(std::max(1, max_threads()));
   const std::size_t wanted =
-      bytes < kParallelParseBytes ? 1 : std::min<std::size_t>(threads, bytes / (kParallelParseBytes / 2));
+      bytes < kParallelParseBytes ? 1 : std::min(threads, bytes / (kParallelParseBytes / 2));
   std::vector<Chunk> chunks(1);
   chunks[0].begin = pos;
   for (std::size_t k = 1; k < wanted; ++k) {
@@ -349,7 +328,7 @@ NumericCsv parse_numeric(std::string_view text, const std::string& source,
     chunks.emplace_back().begin = eol + 1;
   }
   chunks.back().end = text.size();
-  run_parallel(chunks.size(), [&](std::size_t k) { count_lines_and_rows(text, chunks[k]); });
+  parallel_for_index(chunks.size(), [&](std::size_t k) { count_lines_and_rows(text, chunks[k]); });
   int rows = 0;
   chunks[0].first_line = line + 1;
   for (std::size_t k = 0; k < chunks.size(); ++k) {
@@ -365,7 +344,7 @@ NumericCsv parse_numeric(std::string_view text, const std::string& source,
   for (int c = 0, k = 0; c < columns; ++c) {
     destination.push_back(c == out.time_col ? out.time.data() : out.channels.col(k++).data());
   }
-  run_parallel(chunks.size(), [&](std::size_t k) {
+  parallel_for_index(chunks.size(), [&](std::size_t k) {
     parse_rows(text, chunks[k], out.header, source, destination, out.lines.data());
   });
   return out;

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "data/error.hpp"
+#include "data/parallel.hpp"
 #include "estimators/fft.hpp"
 
 namespace stiffid::estimators {
@@ -53,6 +54,9 @@ BlockedSignals::BlockedSignals(const Eigen::Ref<const Eigen::MatrixXd>& signals,
 
 namespace {
 
+// Fixed groups of consecutive blocks (their number does not depend on the thread count).
+constexpr int kBlockGroups = 8;
+
 // Distinct values of `v` in increasing order, and each value's position among them.
 std::vector<int> distinct(std::vector<int> v) {
   std::sort(v.begin(), v.end());
@@ -86,36 +90,48 @@ Eigen::MatrixXd BlockedSignals::correlate(const std::vector<ChannelPair>& pairs)
   // Block b: p over [b B, b B + B) zero-padded to n, q over [b B - L, b B + B + L) (zero outside
   // the record). With n >= B + 2L the circular correlation c(m) = sum_k p_b(k) q_b(k + m) has no
   // wrap-around for m = 0..2L and holds sum_k p(bB + k) q(bB + k + m - L): lag d = m - L.
+  // The blocks are summed in up to kBlockGroups fixed groups of consecutive blocks in parallel,
+  // each in block order, then the groups in order: the same result at any thread count.
   const int n = block_fft_length(s, 2 * max_lag_);
   const int block = n - 2 * max_lag_;
-  RealFft first_fft(n, static_cast<int>(firsts.size()));
-  RealFft second_fft(n, static_cast<int>(seconds.size()));
-  Eigen::MatrixXd p_block(n, firsts.size());
-  Eigen::MatrixXd q_block(n, seconds.size());
-  Eigen::MatrixXcd sums = Eigen::MatrixXcd::Zero(first_fft.bins(), count);
-  for (int start = 0; start < s; start += block) {
-    const int length = std::min(block, s - start);
-    p_block.setZero();
-    for (std::size_t c = 0; c < firsts.size(); ++c) {
-      p_block.col(c).head(length) = centred_.col(firsts[c]).segment(start, length);
+  const int blocks = (s + block - 1) / block;
+  const int groups = std::min(blocks, kBlockGroups);
+  std::vector<Eigen::MatrixXcd> group_sums(groups);
+  data::parallel_for_index(groups, [&](std::size_t g) {
+    RealFft first_fft(n, static_cast<int>(firsts.size()));
+    RealFft second_fft(n, static_cast<int>(seconds.size()));
+    Eigen::MatrixXd p_block(n, firsts.size());
+    Eigen::MatrixXd q_block(n, seconds.size());
+    Eigen::MatrixXcd& sums = group_sums[g];
+    sums = Eigen::MatrixXcd::Zero(first_fft.bins(), count);
+    const int begin = static_cast<int>(static_cast<long>(blocks) * g / groups);
+    const int end = static_cast<int>(static_cast<long>(blocks) * (g + 1) / groups);
+    for (int b = begin; b < end; ++b) {
+      const int start = b * block;
+      const int length = std::min(block, s - start);
+      p_block.setZero();
+      for (std::size_t c = 0; c < firsts.size(); ++c) {
+        p_block.col(c).head(length) = centred_.col(firsts[c]).segment(start, length);
+      }
+      // q's window [start - L, start - L + n) clipped to the record.
+      const int from = std::max(start - max_lag_, 0);
+      const int to = std::min(start - max_lag_ + n, s);
+      q_block.setZero();
+      for (std::size_t c = 0; c < seconds.size(); ++c) {
+        q_block.col(c).segment(from - (start - max_lag_), to - from) =
+            centred_.col(seconds[c]).segment(from, to - from);
+      }
+      const Eigen::MatrixXcd p_spectra = first_fft.forward(p_block);
+      const Eigen::MatrixXcd q_spectra = second_fft.forward(q_block);
+      for (int c = 0; c < count; ++c) {
+        sums.col(c) += p_spectra.col(position(firsts, pairs[c].first)).conjugate().cwiseProduct(
+            q_spectra.col(position(seconds, pairs[c].second)));
+      }
     }
-    // q's window [start - L, start - L + n) clipped to the record.
-    const int from = std::max(start - max_lag_, 0);
-    const int to = std::min(start - max_lag_ + n, s);
-    q_block.setZero();
-    for (std::size_t c = 0; c < seconds.size(); ++c) {
-      q_block.col(c).segment(from - (start - max_lag_), to - from) =
-          centred_.col(seconds[c]).segment(from, to - from);
-    }
-    const Eigen::MatrixXcd p_spectra = first_fft.forward(p_block);
-    const Eigen::MatrixXcd q_spectra = second_fft.forward(q_block);
-    for (int c = 0; c < count; ++c) {
-      sums.col(c) += p_spectra.col(position(firsts, pairs[c].first)).conjugate().cwiseProduct(
-          q_spectra.col(position(seconds, pairs[c].second)));
-    }
-  }
+  });
+  for (int g = 1; g < groups; ++g) group_sums[0] += group_sums[g];
   RealFft inverse(n, count);
-  return inverse.inverse(sums).topRows(lags) / static_cast<double>(s);
+  return inverse.inverse(group_sums[0]).topRows(lags) / static_cast<double>(s);
 }
 
 Eigen::MatrixXd BlockedSignals::convolve(const Eigen::Ref<const Eigen::MatrixXd>& kernels,
@@ -129,37 +145,47 @@ Eigen::MatrixXd BlockedSignals::convolve(const Eigen::Ref<const Eigen::MatrixXd>
   }
   const int inputs = static_cast<int>(kernels.cols()) / outputs;
   const int s = samples();
-  // Block b: x over [b B, b B + B) zero-padded to n; its linear convolution with a kernel of K taps
-  // (length B + K - 1 <= n, so no wrap-around) lands on t = b B + first_lag + (0..B+K-2).
+  // Overlap-save in u = t - first_lag, where y = g * x (linear convolution over taps a = 0..K-1):
+  // the outputs u in [u0, u0 + B) need x over [u0 - K + 1, u0 + B), a window of n = B + K - 1
+  // samples (zero outside the record); entries m = K-1..n-1 of its circular convolution with the
+  // zero-padded kernel are y at u = u0 + m - (K - 1). Output blocks are disjoint, so they run in
+  // parallel and each output sample is computed once, the same way at any thread count.
   const int n = block_fft_length(s, taps - 1);
   const int block = n - taps + 1;
   RealFft kernel_fft(n, inputs * outputs);
   Eigen::MatrixXd padded = Eigen::MatrixXd::Zero(n, inputs * outputs);
   padded.topRows(taps) = kernels;
   const Eigen::MatrixXcd kernel_spectra = kernel_fft.forward(padded);
-  RealFft input_fft(n, inputs);
-  RealFft output_fft(n, outputs);
-  Eigen::MatrixXd x_block(n, inputs);
-  Eigen::MatrixXcd products(input_fft.bins(), outputs);
-  Eigen::MatrixXd y = Eigen::MatrixXd::Zero(s, outputs);
-  for (int start = 0; start < s; start += block) {
-    const int length = std::min(block, s - start);
-    x_block.setZero();
-    x_block.topRows(length) = centred_.block(start, 0, length, inputs);
-    const Eigen::MatrixXcd x_spectra = input_fft.forward(x_block);
-    products.setZero();
-    for (int j = 0; j < outputs; ++j) {
-      for (int i = 0; i < inputs; ++i) {
-        products.col(j) += x_spectra.col(i).cwiseProduct(kernel_spectra.col(i + inputs * j));
+  Eigen::MatrixXd y(s, outputs);
+  const int blocks = (s + block - 1) / block;
+  const int groups = std::min(blocks, kBlockGroups);
+  data::parallel_for_index(groups, [&](std::size_t g) {
+    RealFft input_fft(n, inputs);
+    RealFft output_fft(n, outputs);
+    Eigen::MatrixXd x_window(n, inputs);
+    Eigen::MatrixXcd products(input_fft.bins(), outputs);
+    const int begin = static_cast<int>(static_cast<long>(blocks) * g / groups);
+    const int end = static_cast<int>(static_cast<long>(blocks) * (g + 1) / groups);
+    for (int b = begin; b < end; ++b) {
+      const int t0 = b * block;                 // first output sample of the block
+      const int length = std::min(block, s - t0);
+      const long w0 = static_cast<long>(t0) - first_lag - (taps - 1);  // x index of window row 0
+      const long from = std::max(w0, 0L);
+      const long to = std::min(w0 + n, static_cast<long>(s));
+      x_window.setZero();
+      if (to > from) {
+        x_window.middleRows(from - w0, to - from) = centred_.block(from, 0, to - from, inputs);
       }
+      const Eigen::MatrixXcd x_spectra = input_fft.forward(x_window);
+      products.setZero();
+      for (int j = 0; j < outputs; ++j) {
+        for (int i = 0; i < inputs; ++i) {
+          products.col(j) += x_spectra.col(i).cwiseProduct(kernel_spectra.col(i + inputs * j));
+        }
+      }
+      y.middleRows(t0, length) = output_fft.inverse(products).middleRows(taps - 1, length);
     }
-    const Eigen::MatrixXd z = output_fft.inverse(products);
-    // z(m), m = 0..length+K-2, is y at t = start + first_lag + m; keep t inside the record.
-    const long lo = std::max(0L, -(static_cast<long>(start) + first_lag));
-    const long hi = std::min(static_cast<long>(length) + taps - 1,
-                             static_cast<long>(s) - start - first_lag);
-    if (hi > lo) y.middleRows(start + first_lag + lo, hi - lo) += z.middleRows(lo, hi - lo);
-  }
+  });
   return y;
 }
 

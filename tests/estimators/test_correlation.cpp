@@ -1,5 +1,6 @@
 #include <boost/test/unit_test.hpp>
 #include <random>
+#include <tbb/task_arena.h>
 #include <string>
 #include <tuple>
 #include <cmath>
@@ -156,4 +157,23 @@ BOOST_AUTO_TEST_CASE(bad_arguments_are_input_errors) {
   const Eigen::MatrixXd x = random_signals(10, 2, 1);
   BOOST_CHECK_THROW(est::correlate(x, {-1, true}), stiffid::InputError);
   BOOST_CHECK_THROW(est::correlate(Eigen::MatrixXd(0, 2), {1, true}), stiffid::InputError);
+}
+
+BOOST_AUTO_TEST_CASE(correlations_and_convolutions_are_bit_identical_at_any_thread_count) {
+  // 40000 samples with L = 30: 256-point blocks, 8 fixed groups of ~20 blocks each.
+  const Eigen::MatrixXd x = random_signals(40000, 3, 21);
+  const est::BlockedSignals blocked(x, 30);
+  const std::vector<est::ChannelPair> pairs{{0, 0}, {0, 1}, {1, 2}, {2, 0}};
+  Eigen::MatrixXd g(25, 2);  // two inputs, one output
+  for (int k = 0; k < g.size(); ++k) g(k) = std::sin(0.7 * k);
+  const Eigen::MatrixXd phi = blocked.correlate(pairs);
+  const Eigen::MatrixXd y = blocked.convolve(g, -4, 1);
+  tbb::task_arena one(1);
+  Eigen::MatrixXd phi1, y1;
+  one.execute([&] {
+    phi1 = blocked.correlate(pairs);
+    y1 = blocked.convolve(g, -4, 1);
+  });
+  BOOST_CHECK(phi == phi1);
+  BOOST_CHECK(y == y1);
 }

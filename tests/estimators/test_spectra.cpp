@@ -3,6 +3,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <tbb/task_arena.h>
 
 #include "data/error.hpp"
 #include "estimators/spectra.hpp"
@@ -132,4 +133,20 @@ BOOST_AUTO_TEST_CASE(bad_options_and_short_signals_are_input_errors) {
   } catch (const stiffid::InputError& e) {
     BOOST_CHECK(std::string(e.what()).find("short.csv") != std::string::npos);
   }
+}
+
+BOOST_AUTO_TEST_CASE(spectra_are_bit_identical_at_any_thread_count) {
+  // The segments are summed in fixed groups (estimators/spectra.cpp), so one thread and all the
+  // machine's threads must give the same bits.
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::MatrixXd x(20000, 3);
+  for (int k = 0; k < x.size(); ++k) x(k) = normal(rng);
+  const est::CrossSpectra all = est::welch_cross_spectra(x, 500.0, est::WelchOptions{});
+  tbb::task_arena one(1);
+  est::CrossSpectra single;
+  one.execute([&] { single = est::welch_cross_spectra(x, 500.0, est::WelchOptions{}); });
+  bool same = all.bins() == single.bins();
+  for (int k = 0; same && k < all.bins(); ++k) same = all.g[k] == single.g[k];
+  BOOST_CHECK(same);
 }
