@@ -1,0 +1,122 @@
+#include "estimators/block_toeplitz.hpp"
+
+#include <Eigen/Cholesky>
+#include <cmath>
+
+namespace stiffid::estimators {
+namespace {
+
+// Rotates rows p and q of g over columns [from, end) so that g(q, col) becomes 0 (Givens).
+void givens(Eigen::MatrixXd& g, int p, int q, int col, int from) {
+  const double a = g(p, col);
+  const double b = g(q, col);
+  if (b == 0.0) return;
+  const double r = std::hypot(a, b);
+  const double c = a / r;
+  const double s = b / r;
+  const int len = static_cast<int>(g.cols()) - from;
+  auto x = g.row(p).segment(from, len);
+  auto y = g.row(q).segment(from, len);
+  for (int j = 0; j < len; ++j) {
+    const double xj = x(j);
+    const double yj = y(j);
+    x(j) = c * xj + s * yj;
+    y(j) = c * yj - s * xj;
+  }
+  g(q, col) = 0.0;
+}
+
+}  // namespace
+
+BlockToeplitzCholesky::BlockToeplitzCholesky(
+    const Eigen::Ref<const Eigen::MatrixXd>& first_block_row) {
+  const int blocks_n = static_cast<int>(first_block_row.rows());  // N
+  const int n = static_cast<int>(first_block_row.cols());          // N L
+  if (blocks_n < 1 || n < blocks_n || n % blocks_n != 0) return;
+  const int lags = n / blocks_n;
+  const Eigen::LLT<Eigen::MatrixXd> leading(first_block_row.leftCols(blocks_n));
+  if (leading.info() != Eigen::Success) return;
+  // G1 = U0^{-T} X, X the first block row; G2 = G1 without its first block.
+  Eigen::MatrixXd g1 = leading.matrixL().solve(first_block_row);
+  Eigen::MatrixXd g2 = g1;
+  g2.leftCols(blocks_n).setZero();
+  upper_ = Eigen::MatrixXd::Zero(n, n);
+  for (int k = 0; k < lags; ++k) {
+    const int col0 = k * blocks_n;
+    if (k > 0) {
+      for (int c = 0; c < blocks_n; ++c) {
+        const int col = col0 + c;
+        // G1 rows c+1.. and G2 rows 1.. are rotated into G1 row c and G2 row 0 (orthogonal within
+        // each generator: G1^T G1 and G2^T G2 are unchanged); columns before `col` are zero in
+        // every row involved.
+        for (int r = c + 1; r < blocks_n; ++r) givens(g1, c, r, col, col);
+        for (int r = 1; r < blocks_n; ++r) givens(g2, 0, r, col, col);
+        const double a = g1(c, col);
+        const double b = g2(0, col);
+        // Positive definiteness of the Schur complement: |b| < |a|.
+        if (!(std::abs(b) < std::abs(a))) return;
+        const double rho = b / a;
+        const double ch = 1.0 / std::sqrt((1.0 - rho) * (1.0 + rho));
+        // Hyperbolic rotation [ch, -sh; -sh, ch], sh = rho ch, in the mixed form:
+        // x' = ch (x - rho y), y' = y / ch - rho x'.
+        const int len = n - col;
+        auto x = g1.row(c).segment(col, len);
+        auto y = g2.row(0).segment(col, len);
+        for (int j = 0; j < len; ++j) {
+          const double xj = ch * (x(j) - rho * y(j));
+          y(j) = y(j) / ch - rho * xj;
+          x(j) = xj;
+        }
+        y(0) = 0.0;
+        if (x(0) < 0.0) x *= -1.0;  // positive diagonal
+      }
+    }
+    upper_.block(col0, col0, blocks_n, n - col0) = g1.rightCols(n - col0);
+    // G1 moves one block to the right (Z applied to the generator of the Schur complement).
+    if (k + 1 < lags) {
+      const int keep = n - col0 - blocks_n;  // columns [col0, n - N) move to [col0 + N, n)
+      g1.middleCols(col0 + blocks_n, keep) = g1.middleCols(col0, keep).eval();
+      g1.middleCols(col0, blocks_n).setZero();
+    }
+  }
+  ok_ = true;
+}
+
+Eigen::MatrixXd BlockToeplitzCholesky::solve(const Eigen::Ref<const Eigen::MatrixXd>& b) const {
+  const auto u = upper_.triangularView<Eigen::Upper>();
+  Eigen::MatrixXd x = u.transpose().solve(b);
+  u.solveInPlace(x);
+  return x;
+}
+
+double BlockToeplitzCholesky::rcond(double l1_norm) const {
+  if (!ok_ || !(l1_norm > 0.0)) return 0.0;
+  // Hager (1984) / Higham (1988) estimate of ||T^{-1}||_1 for symmetric T: maximize
+  // ||T^{-1} x||_1 over the unit 1-norm ball by a few steps of a subgradient ascent.
+  const int n = size();
+  Eigen::VectorXd x = Eigen::VectorXd::Constant(n, 1.0 / n);
+  Eigen::VectorXd y = solve(x);
+  double estimate = y.lpNorm<1>();
+  int last = -1;
+  for (int iteration = 0; iteration < 5; ++iteration) {
+    const Eigen::VectorXd sign = y.unaryExpr([](double v) { return v >= 0.0 ? 1.0 : -1.0; });
+    const Eigen::VectorXd z = solve(sign);  // T symmetric: T^{-T} = T^{-1}
+    Eigen::Index j = 0;
+    z.cwiseAbs().maxCoeff(&j);
+    if (static_cast<int>(j) == last || z.cwiseAbs().maxCoeff() <= z.dot(x)) break;
+    last = static_cast<int>(j);
+    x = Eigen::VectorXd::Unit(n, j);
+    y = solve(x);
+    const double next = y.lpNorm<1>();
+    if (next <= estimate) break;
+    estimate = next;
+  }
+  // Higham's alternating vector guards against the few matrices that fool the iteration.
+  Eigen::VectorXd alternating(n);
+  for (int i = 0; i < n; ++i) alternating(i) = (i % 2 == 0 ? 1.0 : -1.0) * (1.0 + i / (n - 1.0 + (n == 1)));
+  const double alt = 2.0 * solve(alternating).lpNorm<1>() / (3.0 * n);
+  estimate = std::max(estimate, alt);
+  return estimate > 0.0 ? 1.0 / (l1_norm * estimate) : 0.0;
+}
+
+}  // namespace stiffid::estimators
