@@ -166,7 +166,8 @@ void run(const IrfCommandOptions& cli, CLI::Option* pinv_flag) {
                             " IRF lags of --lags " + cli.lags);
 
   const estimators::IrfResult result = estimators::estimate_irf(
-      trial.columns(inputs), trial.columns(outputs), trial.sample_rate_hz, options);
+      trial.column_view(inputs).matrix(), trial.column_view(outputs).matrix(),
+      trial.sample_rate_hz, options);
   if (!result.status.ok) throw NumericalFailure(result.status.message);
   data::write_json(cli.output_path, to_json(result, inputs, outputs, options));
 }

@@ -32,6 +32,25 @@ Eigen::MatrixXd Trial::columns(const std::vector<std::string>& channel_names) co
   return out;
 }
 
+namespace {
+// Index of the first of `names` when they are consecutive channels in order, else -1.
+int consecutive_from(const Trial& trial, const std::vector<std::string>& names) {
+  if (names.empty()) return -1;
+  const int first = trial.index(names[0]);
+  for (std::size_t j = 1; j < names.size(); ++j) {
+    if (trial.index(names[j]) != first + static_cast<int>(j)) return -1;
+  }
+  return first;
+}
+}  // namespace
+
+Trial::ColumnView::ColumnView(const Trial& trial, const std::vector<std::string>& channel_names)
+    : copy_(consecutive_from(trial, channel_names) < 0 ? trial.columns(channel_names)
+                                                       : Eigen::MatrixXd()),
+      block_(copy_.size() > 0 ? trial.samples.leftCols(0)
+                              : trial.samples.middleCols(consecutive_from(trial, channel_names),
+                                                         static_cast<Eigen::Index>(channel_names.size()))) {}
+
 Eigen::VectorXd Trial::time_s() const {
   return Eigen::VectorXd::LinSpaced(sample_count(), 0.0, sample_count() - 1.0) / sample_rate_hz +
          Eigen::VectorXd::Constant(sample_count(), start_time_s);

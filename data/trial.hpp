@@ -26,6 +26,23 @@ struct Trial {
   int index(const std::string& name) const;
   /// Copy of the named channels as columns (S x names.size()); throws InputError on a missing one.
   Eigen::MatrixXd columns(const std::vector<std::string>& channel_names) const;
+  /// The named channels as an (S x names.size()) matrix view: the trial's own columns when the
+  /// names are consecutive channels in order (no copy of the record), else a copy held by the
+  /// view. Valid while the trial lives. Throws InputError on a missing channel.
+  class ColumnView {
+   public:
+    ColumnView(const Trial& trial, const std::vector<std::string>& channel_names);
+    Eigen::Ref<const Eigen::MatrixXd> matrix() const {
+      return copy_.size() > 0 ? Eigen::Ref<const Eigen::MatrixXd>(copy_) : block_;
+    }
+
+   private:
+    Eigen::MatrixXd copy_;
+    Eigen::Ref<const Eigen::MatrixXd> block_;
+  };
+  ColumnView column_view(const std::vector<std::string>& channel_names) const {
+    return ColumnView(*this, channel_names);
+  }
   /// Sample times, s (S).
   Eigen::VectorXd time_s() const;
   /// Appends a channel; throws InputError on a duplicate name or a length mismatch.

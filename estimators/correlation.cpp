@@ -39,17 +39,20 @@ int block_fft_length(int samples, int span) {
 
 BlockedSignals::BlockedSignals(const Eigen::Ref<const Eigen::MatrixXd>& signals, int max_lag,
                                bool remove_mean)
-    : max_lag_(max_lag) {
+    : BlockedSignals(Eigen::MatrixXd(signals), max_lag, remove_mean) {}
+
+BlockedSignals::BlockedSignals(Eigen::MatrixXd&& signals, int max_lag, bool remove_mean)
+    : max_lag_(max_lag), centred_(std::move(signals)) {
   if (max_lag < 0) {
     throw InputError("correlation: max_lag must be >= 0 samples, got " + std::to_string(max_lag));
   }
-  if (signals.rows() < 1 || signals.cols() < 1) {
+  if (centred_.rows() < 1 || centred_.cols() < 1) {
     throw InputError("correlation: need at least one sample and one channel, got " +
-                     std::to_string(signals.rows()) + " x " + std::to_string(signals.cols()));
+                     std::to_string(centred_.rows()) + " x " + std::to_string(centred_.cols()));
   }
-  means_ = remove_mean ? Eigen::RowVectorXd(signals.colwise().mean())
-                       : Eigen::RowVectorXd::Zero(signals.cols());
-  centred_ = signals.rowwise() - means_;
+  means_ = remove_mean ? Eigen::RowVectorXd(centred_.colwise().mean())
+                       : Eigen::RowVectorXd::Zero(centred_.cols());
+  centred_.rowwise() -= means_;
 }
 
 namespace {

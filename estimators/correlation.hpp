@@ -46,6 +46,8 @@ class BlockedSignals {
   /// Throws InputError when max_lag < 0 or when there is no sample or no channel.
   BlockedSignals(const Eigen::Ref<const Eigen::MatrixXd>& signals, int max_lag,
                  bool remove_mean = true);
+  /// The same, taking over `signals` (their means are removed in place: no copy of the record).
+  BlockedSignals(Eigen::MatrixXd&& signals, int max_lag, bool remove_mean = true);
 
   int samples() const { return static_cast<int>(centred_.rows()); }   ///< S, samples
   int channels() const { return static_cast<int>(centred_.cols()); }  ///< C

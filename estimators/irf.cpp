@@ -323,7 +323,7 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
 
   Eigen::MatrixXd signals(samples, n_in + n_out);
   signals << inputs, outputs;
-  const BlockedSignals spectra(signals, max_lag, /*remove_mean=*/true);
+  const BlockedSignals spectra(std::move(signals), max_lag, /*remove_mean=*/true);
   std::vector<ChannelPair> pairs;
   for (int i = 0; i < n_in; ++i) {
     for (int k = i; k < n_in; ++k) pairs.push_back({i, k});
@@ -350,7 +350,7 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
           phi_all.col(input_pairs + i + n_in * j).segment(first + max_lag, lags);
     }
   }
-  const Eigen::MatrixXd centred = outputs.rowwise() - spectra.means().tail(n_out);
+  const auto centred = spectra.centred().rightCols(n_out);  // mean-removed outputs
   const Eigen::VectorXd output_power = centred.colwise().squaredNorm().transpose() / samples;
   for (int j = 0; j < n_out; ++j) {
     if (!(output_power(j) > 0.0)) {
@@ -382,14 +382,16 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
   result.r2_correlation_percent = 100.0 * explained.sum() / output_power.sum();
 
   result.predicted = predict(spectra, coefficients, n_in, n_out, first, lags);
-  const Eigen::MatrixXd residual = centred - result.predicted;
   result.vaf_percent.resize(n_out);
+  double residual_energy = 0.0;
   for (int j = 0; j < n_out; ++j) {
-    const double residual_variance =
-        (residual.col(j).array() - residual.col(j).mean()).square().sum() / samples;
+    const auto residual = centred.col(j) - result.predicted.col(j);
+    const double mean = residual.mean();
+    const double residual_variance = (residual.array() - mean).square().sum() / samples;
     result.vaf_percent(j) = 100.0 * (1.0 - residual_variance / output_power(j));
+    residual_energy += residual.squaredNorm();
   }
-  result.r2_percent = 100.0 * (1.0 - residual.squaredNorm() / centred.squaredNorm());
+  result.r2_percent = 100.0 * (1.0 - residual_energy / centred.squaredNorm());
   return result;
 }
 

@@ -208,7 +208,7 @@ CrossSpectra welch_cross_spectra(const data::Trial& trial, const std::vector<std
   data::require_samples(
       trial, options.segment_length,
       "one Welch segment of " + std::to_string(options.segment_length) + " samples");
-  return welch_cross_spectra(trial.columns(channels), trial.sample_rate_hz, options,
+  return welch_cross_spectra(trial.column_view(channels).matrix(), trial.sample_rate_hz, options,
                              trial.source.empty() ? "trial" : trial.source);
 }
 

@@ -170,3 +170,14 @@ BOOST_AUTO_TEST_CASE(blanks_around_cells_and_a_leading_plus_are_accepted) {
   expect_error("t,x\n0,1\n0.1,+\n", {"trial.csv:3:2"});
   expect_error("t,x\n0,1\n0.1,1 2\n", {"trial.csv:3:2", "'1 2'"});
 }
+
+BOOST_AUTO_TEST_CASE(column_views_share_consecutive_channels_and_copy_the_others) {
+  const auto trial = d::parse_trial_csv("t,a,b,c\n0,1,2,3\n1,4,5,6\n", "v.csv");
+  const auto shared = trial.column_view({"b", "c"});
+  BOOST_CHECK(shared.matrix().data() == trial.samples.col(1).data());  // no copy
+  BOOST_CHECK(shared.matrix() == trial.columns({"b", "c"}));
+  const auto reordered = trial.column_view({"c", "a"});
+  BOOST_CHECK(reordered.matrix().data() != trial.samples.data());
+  BOOST_CHECK(reordered.matrix() == trial.columns({"c", "a"}));
+  BOOST_CHECK_THROW(trial.column_view({"a", "z"}), stiffid::InputError);
+}
