@@ -234,15 +234,16 @@ void parse_checked_row(std::string_view row, const std::vector<std::string>& hea
   }
 }
 
-// A run of whole lines text[begin, end) parsed by one thread: its number of lines and of data rows
-// (counted first), then the 1-based line and the row index at which it starts.
+// A run of whole lines text[begin, end) parsed by one thread: its number of lines (counted first,
+// an upper bound on its data rows), the 1-based line and the row index at which it starts, and the
+// data rows it held (blank and comment lines are not rows).
 struct Chunk {
   std::size_t begin = 0;
   std::size_t end = 0;
   int lines = 0;
-  int rows = 0;
   int first_line = 0;
   int first_row = 0;
+  int rows = 0;
 };
 
 // A line that is a data row: not blank, not a comment. Most rows start with a digit or a sign,
@@ -252,24 +253,21 @@ bool data_row(std::string_view row) {
   return !skipped(row);
 }
 
-void count_lines_and_rows(std::string_view text, Chunk& chunk) {
-  std::size_t pos = chunk.begin;
-  while (pos < chunk.end) {
-    const std::size_t eol = std::min(text.find('\n', pos), chunk.end);
-    ++chunk.lines;
-    if (data_row(text.substr(pos, eol - pos))) ++chunk.rows;
-    pos = eol + 1;
-  }
+void count_lines(std::string_view text, Chunk& chunk) {
+  const auto first = text.begin() + static_cast<std::ptrdiff_t>(chunk.begin);
+  const auto last = text.begin() + static_cast<std::ptrdiff_t>(chunk.end);
+  chunk.lines = static_cast<int>(std::count(first, last, '\n'));
+  if (chunk.end > chunk.begin && text[chunk.end - 1] != '\n') ++chunk.lines;  // unterminated
 }
 
 // Parses the data rows of a chunk into the destination columns: file column c of row r goes to
 // columns[c][r], its line to lines[r].
-void parse_rows(std::string_view text, const Chunk& chunk, const std::vector<std::string>& header,
+void parse_rows(std::string_view text, Chunk& chunk, const std::vector<std::string>& header,
                 const std::string& source, const std::vector<double*>& columns, int* lines) {
   const std::size_t count = header.size();
   std::vector<double> cells(count);
   int line = chunk.first_line - 1;
-  int row_index = chunk.first_row;
+  int row_index = chunk.first_row;  // rows go to first_row, first_row + 1, ...
   std::size_t pos = chunk.begin;
   while (pos < chunk.end) {
     const std::size_t eol = std::min(text.find('\n', pos), chunk.end);
@@ -283,6 +281,7 @@ void parse_rows(std::string_view text, const Chunk& chunk, const std::vector<std
     for (std::size_t c = 0; c < count; ++c) columns[c][row_index] = cells[c];
     lines[row_index++] = line;
   }
+  chunk.rows = row_index - chunk.first_row;
 }
 
 // Below this many bytes of rows a trial is parsed on the calling thread alone.
@@ -328,18 +327,20 @@ NumericCsv parse_numeric(std::string_view text, const std::string& source,
     chunks.emplace_back().begin = eol + 1;
   }
   chunks.back().end = text.size();
-  parallel_for_index(chunks.size(), [&](std::size_t k) { count_lines_and_rows(text, chunks[k]); });
-  int rows = 0;
+  // Each chunk gets room for as many rows as it has lines; blank and comment lines leave gaps,
+  // closed afterwards (rare: a plain trial has none, and then nothing is moved).
+  parallel_for_index(chunks.size(), [&](std::size_t k) { count_lines(text, chunks[k]); });
+  int capacity = 0;
   chunks[0].first_line = line + 1;
   for (std::size_t k = 0; k < chunks.size(); ++k) {
     if (k > 0) chunks[k].first_line = chunks[k - 1].first_line + chunks[k - 1].lines;
-    chunks[k].first_row = rows;
-    rows += chunks[k].rows;
+    chunks[k].first_row = capacity;
+    capacity += chunks[k].lines;
   }
-
-  out.channels.resize(rows, columns - (out.time_col >= 0 ? 1 : 0));
-  out.time.resize(out.time_col >= 0 ? rows : 0);
-  out.lines.resize(rows);
+  const int channels = columns - (out.time_col >= 0 ? 1 : 0);
+  out.channels.resize(capacity, channels);
+  out.time.resize(out.time_col >= 0 ? capacity : 0);
+  out.lines.resize(capacity);
   std::vector<double*> destination;
   for (int c = 0, k = 0; c < columns; ++c) {
     destination.push_back(c == out.time_col ? out.time.data() : out.channels.col(k++).data());
@@ -347,6 +348,25 @@ NumericCsv parse_numeric(std::string_view text, const std::string& source,
   parallel_for_index(chunks.size(), [&](std::size_t k) {
     parse_rows(text, chunks[k], out.header, source, destination, out.lines.data());
   });
+  int rows = 0;
+  for (const Chunk& chunk : chunks) rows += chunk.rows;
+  if (rows < capacity) {
+    NumericCsv packed;
+    packed.header = std::move(out.header);
+    packed.time_col = out.time_col;
+    packed.channels.resize(rows, channels);
+    packed.time.resize(out.time_col >= 0 ? rows : 0);
+    packed.lines.resize(rows);
+    int to = 0;
+    for (const Chunk& chunk : chunks) {
+      const int from = chunk.first_row;
+      packed.channels.middleRows(to, chunk.rows) = out.channels.middleRows(from, chunk.rows);
+      if (out.time_col >= 0) packed.time.segment(to, chunk.rows) = out.time.segment(from, chunk.rows);
+      std::copy_n(out.lines.begin() + from, chunk.rows, packed.lines.begin() + to);
+      to += chunk.rows;
+    }
+    return packed;
+  }
   return out;
 }
 

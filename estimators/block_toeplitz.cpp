@@ -40,7 +40,9 @@ BlockToeplitzCholesky::BlockToeplitzCholesky(
   Eigen::MatrixXd g1 = leading.matrixL().solve(first_block_row);
   Eigen::MatrixXd g2 = g1;
   g2.leftCols(blocks_n).setZero();
-  upper_ = Eigen::MatrixXd::Zero(n, n);
+  // Only the upper triangle is written (block row k from column k N on, exact zeros below the
+  // diagonal inside its diagonal block); the strictly lower part is never read.
+  upper_.resize(n, n);
   for (int k = 0; k < lags; ++k) {
     const int col0 = k * blocks_n;
     if (k > 0) {
@@ -94,8 +96,15 @@ double BlockToeplitzCholesky::rcond(double l1_norm) const {
   // Hager (1984) / Higham (1988) estimate of ||T^{-1}||_1 for symmetric T: maximize
   // ||T^{-1} x||_1 over the unit 1-norm ball by a few steps of a subgradient ascent.
   const int n = size();
-  Eigen::VectorXd x = Eigen::VectorXd::Constant(n, 1.0 / n);
-  Eigen::VectorXd y = solve(x);
+  // Hager's start x = 1/n and Higham's alternating vector, solved together (one pass over U).
+  Eigen::MatrixXd start(n, 2);
+  start.col(0).setConstant(1.0 / n);
+  for (int i = 0; i < n; ++i) {
+    start(i, 1) = (i % 2 == 0 ? 1.0 : -1.0) * (1.0 + i / (n - 1.0 + (n == 1)));
+  }
+  const Eigen::MatrixXd solved = solve(start);
+  Eigen::VectorXd x = start.col(0);
+  Eigen::VectorXd y = solved.col(0);
   double estimate = y.lpNorm<1>();
   int last = -1;
   for (int iteration = 0; iteration < 5; ++iteration) {
@@ -112,10 +121,7 @@ double BlockToeplitzCholesky::rcond(double l1_norm) const {
     estimate = next;
   }
   // Higham's alternating vector guards against the few matrices that fool the iteration.
-  Eigen::VectorXd alternating(n);
-  for (int i = 0; i < n; ++i) alternating(i) = (i % 2 == 0 ? 1.0 : -1.0) * (1.0 + i / (n - 1.0 + (n == 1)));
-  const double alt = 2.0 * solve(alternating).lpNorm<1>() / (3.0 * n);
-  estimate = std::max(estimate, alt);
+  estimate = std::max(estimate, 2.0 * solved.col(1).lpNorm<1>() / (3.0 * n));
   return estimate > 0.0 ? 1.0 / (l1_norm * estimate) : 0.0;
 }
 

@@ -25,8 +25,9 @@ class BlockToeplitzCholesky {
 
   bool ok() const { return ok_; }
   int size() const { return static_cast<int>(upper_.rows()); }  ///< n = N L
-  /// U (n x n, upper triangular, positive diagonal) with T = U^T U; meaningful when ok().
-  const Eigen::MatrixXd& upper() const { return upper_; }
+  /// U (n x n, upper triangular, positive diagonal) with T = U^T U, as a new matrix (the factor
+  /// is stored without its zero lower part); meaningful when ok().
+  Eigen::MatrixXd upper() const { return upper_.triangularView<Eigen::Upper>(); }
   /// T^{-1} b for b (n x M) in lag-major order; requires ok().
   Eigen::MatrixXd solve(const Eigen::Ref<const Eigen::MatrixXd>& b) const;
   /// Estimate of the reciprocal condition number 1 / (||T||_1 ||T^{-1}||_1), ||T^{-1}||_1 by

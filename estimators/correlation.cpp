@@ -38,27 +38,56 @@ int block_fft_length(int samples, int span) {
 }
 
 BlockedSignals::BlockedSignals(const Eigen::Ref<const Eigen::MatrixXd>& signals, int max_lag,
-                               bool remove_mean)
-    : BlockedSignals(Eigen::MatrixXd(signals), max_lag, remove_mean) {}
+                               bool remove_mean) {
+  add(signals);
+  finish(max_lag, remove_mean);
+}
 
-BlockedSignals::BlockedSignals(Eigen::MatrixXd&& signals, int max_lag, bool remove_mean)
-    : max_lag_(max_lag), centred_(std::move(signals)) {
+BlockedSignals::BlockedSignals(const Eigen::Ref<const Eigen::MatrixXd>& first,
+                               const Eigen::Ref<const Eigen::MatrixXd>& second, int max_lag,
+                               bool remove_mean) {
+  add(first);
+  add(second);
+  finish(max_lag, remove_mean);
+}
+
+void BlockedSignals::add(const Eigen::Ref<const Eigen::MatrixXd>& signals) {
+  if (samples_ >= 0 && signals.rows() != samples_) {
+    throw InputError("correlation: channels of " + std::to_string(samples_) + " and " +
+                     std::to_string(signals.rows()) + " samples");
+  }
+  samples_ = static_cast<int>(signals.rows());
+  for (Eigen::Index c = 0; c < signals.cols(); ++c) columns_.push_back(signals.col(c).data());
+}
+
+void BlockedSignals::finish(int max_lag, bool remove_mean) {
+  max_lag_ = max_lag;
   if (max_lag < 0) {
     throw InputError("correlation: max_lag must be >= 0 samples, got " + std::to_string(max_lag));
   }
-  if (centred_.rows() < 1 || centred_.cols() < 1) {
+  if (samples_ < 1 || columns_.empty()) {
     throw InputError("correlation: need at least one sample and one channel, got " +
-                     std::to_string(centred_.rows()) + " x " + std::to_string(centred_.cols()));
+                     std::to_string(std::max(samples_, 0)) + " x " +
+                     std::to_string(columns_.size()));
   }
-  means_ = remove_mean ? Eigen::RowVectorXd(centred_.colwise().mean())
-                       : Eigen::RowVectorXd::Zero(centred_.cols());
-  centred_.rowwise() -= means_;
+  means_ = Eigen::RowVectorXd::Zero(channels());
+  if (remove_mean) {
+    for (int c = 0; c < channels(); ++c) {
+      means_(c) = Eigen::Map<const Eigen::VectorXd>(columns_[c], samples_).mean();
+    }
+  }
+}
+
+void BlockedSignals::copy_centred(int c, int from, int length, Eigen::Ref<Eigen::VectorXd> out,
+                                  int at) const {
+  out.segment(at, length) =
+      (Eigen::Map<const Eigen::VectorXd>(columns_[c] + from, length).array() - means_(c)).matrix();
 }
 
 namespace {
 
 // Fixed groups of consecutive blocks (their number does not depend on the thread count).
-constexpr int kBlockGroups = 8;
+constexpr int kBlockGroups = 4;
 
 // Distinct values of `v` in increasing order, and each value's position among them.
 std::vector<int> distinct(std::vector<int> v) {
@@ -114,15 +143,14 @@ Eigen::MatrixXd BlockedSignals::correlate(const std::vector<ChannelPair>& pairs)
       const int length = std::min(block, s - start);
       p_block.setZero();
       for (std::size_t c = 0; c < firsts.size(); ++c) {
-        p_block.col(c).head(length) = centred_.col(firsts[c]).segment(start, length);
+        copy_centred(firsts[c], start, length, p_block.col(c), 0);
       }
       // q's window [start - L, start - L + n) clipped to the record.
       const int from = std::max(start - max_lag_, 0);
       const int to = std::min(start - max_lag_ + n, s);
       q_block.setZero();
       for (std::size_t c = 0; c < seconds.size(); ++c) {
-        q_block.col(c).segment(from - (start - max_lag_), to - from) =
-            centred_.col(seconds[c]).segment(from, to - from);
+        copy_centred(seconds[c], from, to - from, q_block.col(c), from - (start - max_lag_));
       }
       const Eigen::MatrixXcd p_spectra = first_fft.forward(p_block);
       const Eigen::MatrixXcd q_spectra = second_fft.forward(q_block);
@@ -177,7 +205,10 @@ Eigen::MatrixXd BlockedSignals::convolve(const Eigen::Ref<const Eigen::MatrixXd>
       const long to = std::min(w0 + n, static_cast<long>(s));
       x_window.setZero();
       if (to > from) {
-        x_window.middleRows(from - w0, to - from) = centred_.block(from, 0, to - from, inputs);
+        for (int i = 0; i < inputs; ++i) {
+          copy_centred(i, static_cast<int>(from), static_cast<int>(to - from), x_window.col(i),
+                       static_cast<int>(from - w0));
+        }
       }
       const Eigen::MatrixXcd x_spectra = input_fft.forward(x_window);
       products.setZero();

@@ -42,20 +42,26 @@ int block_fft_length(int samples, int span);
 /// transforms run in cache). The results are the linear (never circular) sums of eq 8.
 class BlockedSignals {
  public:
-  /// `signals`: (S x C) one channel per column, S >= 1 samples; `max_lag` L >= 0 samples.
-  /// Throws InputError when max_lag < 0 or when there is no sample or no channel.
+  /// Views `signals` (S x C, one channel per column, S >= 1 samples): no copy is made, so the
+  /// caller keeps them alive and unchanged while this object is used (pass a matrix or a block
+  /// of one, not an expression). `max_lag` L >= 0 samples. Throws InputError when max_lag < 0 or
+  /// when there is no sample or no channel.
   BlockedSignals(const Eigen::Ref<const Eigen::MatrixXd>& signals, int max_lag,
                  bool remove_mean = true);
-  /// The same, taking over `signals` (their means are removed in place: no copy of the record).
-  BlockedSignals(Eigen::MatrixXd&& signals, int max_lag, bool remove_mean = true);
+  /// Views the channels of `first` followed by those of `second` (both S rows), likewise.
+  BlockedSignals(const Eigen::Ref<const Eigen::MatrixXd>& first,
+                 const Eigen::Ref<const Eigen::MatrixXd>& second, int max_lag,
+                 bool remove_mean = true);
 
-  int samples() const { return static_cast<int>(centred_.rows()); }   ///< S, samples
-  int channels() const { return static_cast<int>(centred_.cols()); }  ///< C
+  int samples() const { return samples_; }                            ///< S, samples
+  int channels() const { return static_cast<int>(columns_.size()); }  ///< C
   int max_lag() const { return max_lag_; }                            ///< L, samples
   /// (C) channel means that were removed (zeros when remove_mean is false), channel units.
   const Eigen::RowVectorXd& means() const { return means_; }
-  /// (S x C) the channels with their means removed, channel units.
-  const Eigen::MatrixXd& centred() const { return centred_; }
+  /// Channel c with its mean removed (S), channel units: an expression over the viewed samples.
+  auto centred(int c) const {
+    return (Eigen::Map<const Eigen::VectorXd>(columns_[c], samples_).array() - means_(c)).matrix();
+  }
 
   /// ((2L+1) x P) column p holds phi_{pairs[p].first, pairs[p].second}(d) at row d + L (eq 8),
   /// from the sum over blocks of conj(X_p) Q_q (X_p a block of p zero-padded, Q_q the matching
@@ -64,17 +70,23 @@ class BlockedSignals {
   Eigen::MatrixXd correlate(const std::vector<ChannelPair>& pairs) const;
 
   /// (S x M) y_j(t) = sum_i sum_{a=0}^{K-1} kernels(a, i + N j) x_i(t - first_lag - a) for
-  /// t = 0..S-1, with x_i channel i (i = 0..N-1, N = kernels.cols() / outputs) and zero outside
-  /// the record: the discrete convolution of eq 1 with kernels supported on lags
-  /// first_lag..first_lag+K-1 samples, by overlap-add of blocks. Throws InputError when the
+  /// t = 0..S-1, with x_i centred channel i (i = 0..N-1, N = kernels.cols() / outputs) and zero
+  /// outside the record: the discrete convolution of eq 1 with kernels supported on lags
+  /// first_lag..first_lag+K-1 samples, by overlap-save of blocks. Throws InputError when the
   /// kernel columns do not match `outputs` and the channels.
   Eigen::MatrixXd convolve(const Eigen::Ref<const Eigen::MatrixXd>& kernels, int first_lag,
                            int outputs) const;
 
  private:
+  void add(const Eigen::Ref<const Eigen::MatrixXd>& signals);
+  void finish(int max_lag, bool remove_mean);
+  // centred(c).segment(from, length) into out.segment(at, length).
+  void copy_centred(int c, int from, int length, Eigen::Ref<Eigen::VectorXd> out, int at) const;
+
   int max_lag_ = 0;
+  int samples_ = -1;
+  std::vector<const double*> columns_;  ///< [C] first sample of each viewed channel
   Eigen::RowVectorXd means_;
-  Eigen::MatrixXd centred_;
 };
 
 /// All auto- and cross-correlations of a set of C channels over lags -L..L.

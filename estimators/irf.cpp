@@ -173,17 +173,24 @@ Solution solve_block_toeplitz(const Eigen::MatrixXd& phi_inputs, int inputs, int
       for (int k = 0; k < inputs; ++k) first_row(i, d * inputs + k) = correlation(i, k, -d);
     }
   }
-  // ||Psi||_1: column (k, b) sums |phi_ik(a - b)| over inputs i and lag indices a.
-  double l1_norm = 0.0;
+  // ||Psi||_1: column (k, b) sums |phi_ik(d)| over inputs i and d = a - b, a = 0..L-1, i.e. over
+  // d = -b..L-1-b: a window of prefix sums of |phi_ik| over d = -(L-1)..L-1.
+  Eigen::VectorXd column_sums = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(inputs) * lags);
+  Eigen::VectorXd prefix(2 * lags);  // prefix(m) = sum_{d < m - (L-1)} |phi_ik(d)|
   for (int k = 0; k < inputs; ++k) {
-    for (int b = 0; b < lags; ++b) {
-      double sum = 0.0;
-      for (int i = 0; i < inputs; ++i) {
-        for (int a = 0; a < lags; ++a) sum += std::abs(correlation(i, k, a - b));
+    for (int i = 0; i < inputs; ++i) {
+      prefix(0) = 0.0;
+      for (int m = 0; m < 2 * lags - 1; ++m) {
+        prefix(m + 1) = prefix(m) + std::abs(correlation(i, k, m - (lags - 1)));
       }
-      l1_norm = std::max(l1_norm, sum);
+      for (int b = 0; b < lags; ++b) {
+        // d from -b to L-1-b: m = d + L - 1 from L-1-b to 2L-2-b.
+        column_sums(static_cast<Eigen::Index>(k) * lags + b) +=
+            prefix(2 * lags - 1 - b) - prefix(lags - 1 - b);
+      }
     }
   }
+  const double l1_norm = column_sums.maxCoeff();
   Solution s;
   const BlockToeplitzCholesky factor(first_row);
   const double rcond = factor.ok() ? factor.rcond(l1_norm) : 0.0;
@@ -321,9 +328,7 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
   result.full_rank = n_in * lags;
   result.lag_s = Eigen::VectorXd::LinSpaced(lags, first, options.last_lag) / sample_rate_hz;
 
-  Eigen::MatrixXd signals(samples, n_in + n_out);
-  signals << inputs, outputs;
-  const BlockedSignals spectra(std::move(signals), max_lag, /*remove_mean=*/true);
+  const BlockedSignals spectra(inputs, outputs, max_lag, /*remove_mean=*/true);
   std::vector<ChannelPair> pairs;
   for (int i = 0; i < n_in; ++i) {
     for (int k = i; k < n_in; ++k) pairs.push_back({i, k});
@@ -350,8 +355,8 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
           phi_all.col(input_pairs + i + n_in * j).segment(first + max_lag, lags);
     }
   }
-  const auto centred = spectra.centred().rightCols(n_out);  // mean-removed outputs
-  const Eigen::VectorXd output_power = centred.colwise().squaredNorm().transpose() / samples;
+  Eigen::VectorXd output_power(n_out);  // variance of each output
+  for (int j = 0; j < n_out; ++j) output_power(j) = spectra.centred(n_in + j).squaredNorm() / samples;
   for (int j = 0; j < n_out; ++j) {
     if (!(output_power(j) > 0.0)) {
       result.status = Status::failure("IRF: output " + std::to_string(j) +
@@ -385,13 +390,13 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
   result.vaf_percent.resize(n_out);
   double residual_energy = 0.0;
   for (int j = 0; j < n_out; ++j) {
-    const auto residual = centred.col(j) - result.predicted.col(j);
+    const auto residual = spectra.centred(n_in + j) - result.predicted.col(j);
     const double mean = residual.mean();
     const double residual_variance = (residual.array() - mean).square().sum() / samples;
     result.vaf_percent(j) = 100.0 * (1.0 - residual_variance / output_power(j));
     residual_energy += residual.squaredNorm();
   }
-  result.r2_percent = 100.0 * (1.0 - residual_energy / centred.squaredNorm());
+  result.r2_percent = 100.0 * (1.0 - residual_energy / (output_power.sum() * samples));
   return result;
 }
 

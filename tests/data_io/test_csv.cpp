@@ -181,3 +181,28 @@ BOOST_AUTO_TEST_CASE(column_views_share_consecutive_channels_and_copy_the_others
   BOOST_CHECK(reordered.matrix() == trial.columns({"c", "a"}));
   BOOST_CHECK_THROW(trial.column_view({"a", "z"}), stiffid::InputError);
 }
+
+BOOST_AUTO_TEST_CASE(blank_and_comment_lines_inside_a_large_trial_are_skipped_in_every_chunk) {
+  // Lines that are not rows, spread over the whole file (so over every parsing chunk): the rows
+  // close up around them and the line numbers of later rows stay those of the file.
+  const std::string plain = large_trial_text(60000);
+  std::string text;
+  std::size_t pos = 0;
+  int data_line = 0;
+  while (pos < plain.size()) {
+    const std::size_t eol = plain.find('\n', pos) + 1;
+    text.append(plain, pos, eol - pos);
+    pos = eol;
+    if (++data_line % 9000 == 0) text += (data_line % 2 == 0 ? "\n" : "# note\n");
+  }
+  const auto trial = d::parse_trial_csv(text, "gaps.csv");
+  BOOST_REQUIRE_EQUAL(trial.sample_count(), 60000);
+  bool rows_in_order = true;
+  for (int r = 0; r < trial.sample_count(); ++r) rows_in_order = rows_in_order && trial.samples(r, 0) == r;
+  BOOST_CHECK(rows_in_order);
+  // Row 59990 is on line 59992 of the plain text, and 6 inserted lines come before it.
+  std::string bad = text;
+  const std::size_t at = bad.find("\n59.990000000000002,59990,") + 1;
+  bad.replace(at, bad.find('\n', at) - at, "59.99,59990,?");
+  expect_error(bad, {"trial.csv:59998:3"});
+}
