@@ -45,11 +45,14 @@ int consecutive_from(const Trial& trial, const std::vector<std::string>& names) 
 }  // namespace
 
 Trial::ColumnView::ColumnView(const Trial& trial, const std::vector<std::string>& channel_names)
-    : copy_(consecutive_from(trial, channel_names) < 0 ? trial.columns(channel_names)
-                                                       : Eigen::MatrixXd()),
-      block_(copy_.size() > 0 ? trial.samples.leftCols(0)
-                              : trial.samples.middleCols(consecutive_from(trial, channel_names),
-                                                         static_cast<Eigen::Index>(channel_names.size()))) {}
+    : ColumnView(trial, channel_names, consecutive_from(trial, channel_names)) {}
+
+Trial::ColumnView::ColumnView(const Trial& trial, const std::vector<std::string>& channel_names,
+                              int first)
+    : copy_(first < 0 ? trial.columns(channel_names) : Eigen::MatrixXd()),
+      block_(first < 0 ? trial.samples.leftCols(0)
+                       : trial.samples.middleCols(first,
+                                                  static_cast<Eigen::Index>(channel_names.size()))) {}
 
 Eigen::VectorXd Trial::time_s() const {
   return Eigen::VectorXd::LinSpaced(sample_count(), 0.0, sample_count() - 1.0) / sample_rate_hz +

@@ -37,6 +37,7 @@ struct Trial {
     }
 
    private:
+    ColumnView(const Trial& trial, const std::vector<std::string>& channel_names, int first);
     Eigen::MatrixXd copy_;
     Eigen::Ref<const Eigen::MatrixXd> block_;
   };
