@@ -1,8 +1,9 @@
 #!/bin/sh
 # End-to-end MIMO benchmark (issue 3): `stiffid frf --nfft 4096` + `stiffid irf --lags -0.1:0.5` on
 # 10-minute, 1 kHz, 2x2 endpoint trials, against the Python peers (bench/peer_frf.py:
-# scipy.signal.csd + numpy solve; bench/peer_irf.py: numpy FFT correlations + scipy.linalg.solve)
-# doing the same work with the same settings, each side as two processes that read the CSV.
+# scipy.signal.csd + numpy solve, coherences and the random-error bands; bench/peer_irf.py: numpy
+# FFT correlations + scipy.linalg.solve) doing the same work with the same settings and writing
+# the same JSON, each side as two processes that read the CSV.
 # Two trials (bench/make_bench_trial.py, the same model and noise, different force bandwidths):
 #   broadband     forces low-passed at 100 Hz: Psi of eq 11 (1202 x 1202) is well conditioned
 #                 (condition number ~6e6), and both sides solve it by Cholesky: the issue's
@@ -72,8 +73,12 @@ def worst(a, b, keys):
         x, y = a, b
         for k in path:
             x, y = x[k], y[k]
-        x, y = np.asarray(x), np.asarray(y)
-        err = max(err, float(np.max(np.abs(x - y)) / np.max(np.abs(y))))
+        x = np.array([np.nan if v is None else v for v in x], dtype=float)
+        y = np.array([np.nan if v is None else v for v in y], dtype=float)
+        if not (np.isfinite(x) == np.isfinite(y)).all():
+            return float("inf")  # null (non-finite) in one output only
+        m = np.isfinite(x)
+        err = max(err, float(np.max(np.abs(x[m] - y[m])) / np.max(np.abs(y[m]))))
     return err
 irf, peer = json.load(open(w + "/irf.json")), json.load(open(w + "/peer_irf.json"))
 keys = [("irf", o, i) for o in irf["outputs"] for i in irf["inputs"]]
@@ -83,6 +88,12 @@ print("IRF: max relative difference stiffid vs peer %.1e; VAF %s vs %s; R^2 %.4f
 frf, pfrf = json.load(open(w + "/frf.json")), json.load(open(w + "/peer_frf.json"))
 keys = [("frf", o, i, part) for o in frf["outputs"] for i in frf["inputs"] for part in ("re", "im")]
 print("FRF: max relative difference stiffid vs peer %.1e" % worst(frf, pfrf, keys))
+keys = [("random_error", "frf_magnitude", o, i, part) for o in frf["outputs"] for i in frf["inputs"]
+        for part in ("eps", "lower", "upper")]
+keys += [("random_error", "coherence", kind, o, i, "eps") for kind in ("ordinary", "partial")
+         for o in frf["outputs"] for i in frf["inputs"]]
+keys += [("random_error", "coherence", "multiple", o, "eps") for o in frf["outputs"]]
+print("random-error bands: max relative difference stiffid vs peer %.1e" % worst(frf, pfrf, keys))
 PY
 }
 

@@ -7,7 +7,10 @@ Same arguments and the same core JSON keys as the C++ command:
               [--fs HZ] [-o OUT.json]
 Welch spectra: nperseg = nfft, noverlap = int(overlap * nfft) (truncation, as stiffid),
 one-sided density, Gxy[i][j] = mean(conj(X_i) Y_j). H1 MIMO FRF from Gxx H_j = Gxy_j; ordinary,
-multiple and partial coherence (Bendat & Piersol conditioned spectra, any number of inputs).
+multiple and partial coherence (Bendat & Piersol conditioned spectra, any number of inputs);
+Bendat & Piersol random-error bands as stiffid writes them under "random_error" (n_d = segments,
+n_d - N + 1 for the conditioned quantities, bands value (1 -/+ 2 eps) clipped to [0, 1] for
+coherences and [0, inf) for |H|). Non-finite values are written as null, as stiffid does.
 """
 import argparse
 import json
@@ -68,6 +71,49 @@ def conditioned(g, keep, given):
     return gkk - gkr @ np.linalg.solve(grr, grk)
 
 
+def normalized_error(g2, dof, factor, power):
+    """eps = factor (1 - g2)^power / (|g| sqrt(dof)); inf where g2 <= 0 (Bendat & Piersol)."""
+    g2 = np.asarray(g2, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        eps = factor * np.maximum(0.0, 1.0 - g2) ** power / (np.sqrt(g2) * np.sqrt(dof))
+    return np.where(g2 > 0.0, eps, np.inf)
+
+
+def band(value, eps, c, cap):
+    value = np.asarray(value, dtype=float)
+    ok = np.isfinite(eps) & np.isfinite(value)
+    with np.errstate(invalid="ignore"):
+        lower = np.where(ok, np.maximum(0.0, value * (1.0 - c * eps)), 0.0)
+        upper = np.where(ok, np.minimum(cap, value * (1.0 + c * eps)), cap)
+    return {"eps": eps, "lower": lower, "upper": upper}
+
+
+def equivalent_independent_segments(segments, nperseg, noverlap, window):
+    """Welch's number of independent segments for overlapped, windowed segments."""
+    if segments <= 1:
+        return float(segments)
+    w = scipy.signal.get_window(window, nperseg)
+    step = nperseg - noverlap
+    energy = np.dot(w, w)
+    total = 0.0
+    m = 1
+    while m < segments and m * step < nperseg:
+        shared = nperseg - m * step
+        rho = np.dot(w[:shared], w[-shared:]) / energy
+        total += (1.0 - m / segments) * rho * rho
+        m += 1
+    return segments / (1.0 + 2.0 * total)
+
+
+def finite_or_none(x):
+    """Nested lists and dicts of numbers with inf and NaN replaced by None (JSON null)."""
+    if isinstance(x, dict):
+        return {k: finite_or_none(v) for k, v in x.items()}
+    if isinstance(x, np.ndarray):
+        return [v if np.isfinite(v) else None for v in x.tolist()]
+    return x
+
+
 def main(argv):
     p = argparse.ArgumentParser()
     p.add_argument("trial")
@@ -111,6 +157,29 @@ def main(argv):
             s = conditioned(g, [i, n + j], others)
             partial[xi] = (np.abs(s[:, 0, 1]) ** 2 / (s[:, 0, 0].real * s[:, 1, 1].real)).tolist()
         out["coherence"]["partial"][yo] = partial
+    segments = out["segments"]
+    nd, c = float(segments), 2.0
+    ndc = nd - n + 1
+    err = {"averages": nd, "confidence_factor": c,
+           "equivalent_independent_segments": equivalent_independent_segments(
+               segments, a.nfft, noverlap, window_arg(a.window)),
+           "frf_magnitude": {}, "coherence": {"ordinary": {}, "multiple": {}, "partial": {}}}
+    for j, yo in enumerate(outputs):
+        multiple = np.array(out["coherence"]["multiple"][yo])
+        err["coherence"]["multiple"][yo] = band(
+            multiple, normalized_error(multiple, ndc, np.sqrt(2.0), 1.0), c, 1.0)
+        err["frf_magnitude"][yo], err["coherence"]["ordinary"][yo] = {}, {}
+        err["coherence"]["partial"][yo] = {}
+        for i, xi in enumerate(inputs):
+            ordinary = np.array(out["coherence"]["ordinary"][yo][xi])
+            partial = np.array(out["coherence"]["partial"][yo][xi])
+            err["coherence"]["ordinary"][yo][xi] = band(
+                ordinary, normalized_error(ordinary, nd, np.sqrt(2.0), 1.0), c, 1.0)
+            err["coherence"]["partial"][yo][xi] = band(
+                partial, normalized_error(partial, ndc, np.sqrt(2.0), 1.0), c, 1.0)
+            err["frf_magnitude"][yo][xi] = band(
+                np.abs(h[:, i, j]), normalized_error(partial, 2.0 * ndc, 1.0, 0.5), c, np.inf)
+    out["random_error"] = finite_or_none(err)
     text = json.dumps(out, indent=2)
     if a.output and a.output != "-":
         with open(a.output, "w") as f:
