@@ -2,8 +2,9 @@
 # End-to-end MIMO benchmark (issue 3): `stiffid frf --nfft 4096` + `stiffid irf --lags -0.1:0.5` on
 # 10-minute, 1 kHz, 2x2 endpoint trials, against the Python peers (bench/peer_frf.py:
 # scipy.signal.csd + numpy solve, coherences and the random-error bands; bench/peer_irf.py: numpy
-# FFT correlations + scipy.linalg.solve) doing the same work with the same settings and writing
-# the same JSON, each side as two processes that read the CSV.
+# FFT correlations, Cholesky with LAPACK's condition estimate, VAF and R^2 both ways) doing the
+# same work with the same settings and writing the same JSON, each side as two processes that
+# read the CSV.
 # Two trials (bench/make_bench_trial.py, the same model and noise, different force bandwidths):
 #   broadband     forces low-passed at 100 Hz: Psi of eq 11 (1202 x 1202) is well conditioned
 #                 (condition number ~6e6), and both sides solve it by Cholesky: the issue's
@@ -85,6 +86,12 @@ keys = [("irf", o, i) for o in irf["outputs"] for i in irf["inputs"]]
 print("IRF: max relative difference stiffid vs peer %.1e; VAF %s vs %s; R^2 %.4f vs %.4f" % (
     worst(irf, peer, keys), {k: round(v, 4) for k, v in irf["vaf_percent"].items()},
     {k: round(v, 4) for k, v in peer["vaf_percent"].items()}, irf["r2_percent"], peer["r2_percent"]))
+print("IRF from correlations (eqs 12-13): VAF %s vs %s; R^2 %.4f vs %.4f; condition number %s vs %s" % (
+    {k: round(v, 4) for k, v in irf["vaf_correlation_percent"].items()},
+    {k: round(v, 4) for k, v in peer["vaf_correlation_percent"].items()},
+    irf["r2_correlation_percent"], peer["r2_correlation_percent"],
+    "%.6g" % irf["condition_number"] if irf.get("condition_number") else "-",
+    "%.6g" % peer["condition_number"] if "condition_number" in peer else "-"))
 frf, pfrf = json.load(open(w + "/frf.json")), json.load(open(w + "/peer_frf.json"))
 keys = [("frf", o, i, part) for o in frf["outputs"] for i in frf["inputs"] for part in ("re", "im")]
 print("FRF: max relative difference stiffid vs peer %.1e" % worst(frf, pfrf, keys))

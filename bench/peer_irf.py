@@ -6,8 +6,9 @@
 Same conventions and core JSON keys as the C++ command: biased correlations with means removed,
 phi_xy(d) = 1/S sum_k x(k) y(k + d), all from one batched zero-padded real FFT of every channel;
 the block-Toeplitz system Psi H = Phi_xy (Perreault et al. 1999 eq 11) solved with
-scipy.linalg.solve(assume_a="pos") (Cholesky; scipy has no block-Toeplitz solver, solve_toeplitz
-is for scalar Toeplitz matrices only), or with --pinv mdl the Westwick & Kearney pseudo-inverse as
+Cholesky (scipy.linalg.cho_factor / cho_solve with LAPACK dpocon for the reciprocal condition
+number: what scipy.linalg.solve(assume_a="pos") does inside, with the condition kept for the
+output; scipy has no block-Toeplitz solver, solve_toeplitz is for scalar Toeplitz matrices only), or with --pinv mdl the Westwick & Kearney pseudo-inverse as
 stiffid computes it (numpy.linalg.eigh of Psi; eigenvectors above n eps max(w), ordered by their
 contribution to the output variance, as many as minimise MDL(m) = (1 + m M ln(n)/n) V(m),
 n = S M); h = H / dt; predicted outputs by FFT convolution; VAF per
@@ -20,6 +21,7 @@ import sys
 import numpy as np
 import scipy.fft
 import scipy.linalg
+import scipy.linalg.lapack
 
 
 def read_trial(path, fs_flag):
@@ -97,7 +99,10 @@ def main(argv):
     if a.pinv:
         coef = pseudo_inverse(psi, phi_xy, (y**2).mean(axis=0), s)
     else:
-        coef = scipy.linalg.solve(psi, phi_xy, assume_a="pos")  # dt * h
+        factor = scipy.linalg.cho_factor(psi, lower=False, check_finite=False)
+        rcond, info = scipy.linalg.lapack.dpocon(factor[0], np.linalg.norm(psi, 1), uplo="U")
+        condition = 1.0 / rcond if rcond > 0 else float("inf")
+        coef = scipy.linalg.cho_solve(factor, phi_xy, check_finite=False)  # dt * h
     h = coef * fs
 
     kernels = np.zeros((nfft, n_in * n_out))
@@ -112,13 +117,20 @@ def main(argv):
     e = y - yhat
     vaf = 100.0 * (1.0 - e.var(axis=0) / y.var(axis=0))
     r2 = 100.0 * (1.0 - np.sum(e**2) / np.sum(y**2))
+    explained = (phi_xy * coef).sum(axis=0)  # eqs 12-13 from the correlations
+    power = (y**2).mean(axis=0)
 
     out = {"fs": fs, "inputs": inputs, "outputs": outputs,
            "lag_s": (np.arange(first, last + 1) / fs).tolist(),
            "irf": {yo: {xi: h[i * lags:(i + 1) * lags, j].tolist() for i, xi in enumerate(inputs)}
                    for j, yo in enumerate(outputs)},
            "vaf_percent": {yo: float(vaf[j]) for j, yo in enumerate(outputs)},
-           "r2_percent": float(r2)}
+           "r2_percent": float(r2),
+           "vaf_correlation_percent": {yo: float(100.0 * explained[j] / power[j])
+                                       for j, yo in enumerate(outputs)},
+           "r2_correlation_percent": float(100.0 * explained.sum() / power.sum())}
+    if not a.pinv:
+        out["condition_number"] = condition
     text = json.dumps(out, indent=2)
     if a.output and a.output != "-":
         with open(a.output, "w") as f:

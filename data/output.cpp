@@ -36,7 +36,9 @@ void write_json(const std::string& path, const nlohmann::json& value) {
   if (path.empty() || path == "-") {
     std::cout << value.dump(2) << '\n';
   } else {
-    write_file_atomically(path, value.dump(2) + "\n");
+    std::string text = value.dump(2);
+    text += '\n';  // appended in place: no second copy of a multi-megabyte text
+    write_file_atomically(path, text);
   }
 }
 
