@@ -216,18 +216,7 @@ bool parse_plain_row(std::string_view row, std::size_t columns, double* out) {
 void parse_checked_row(std::string_view row, const std::vector<std::string>& header,
                        const std::string& source, int line, double* out) {
   const std::size_t columns = header.size();
-  std::vector<std::string> split;
-  if (row.find('"') != std::string_view::npos) {
-    split = split_line(std::string(row));
-  } else {
-    std::size_t start = 0;
-    while (true) {
-      const std::size_t comma = std::min(row.find(',', start), row.size());
-      split.emplace_back(trim_view(row.substr(start, comma - start)));
-      if (comma == row.size()) break;
-      start = comma + 1;
-    }
-  }
+  const std::vector<std::string> split = split_line(std::string(row));
   if (split.size() != columns) throw ragged(source, line, split.size(), columns);
   for (std::size_t c = 0; c < columns; ++c) {
     out[c] = parse_number(split[c], source, line, static_cast<int>(c), header[c]);

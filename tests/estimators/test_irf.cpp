@@ -48,6 +48,19 @@ Fir random_fir(int outputs, int inputs, int first, int lags, unsigned seed) {
   return fir;
 }
 
+// Independent AR(1) channels x_i(t) = pole x_i(t-1) + w, w standard normal, seeded, channel by
+// channel; coloured inputs whose Psi is far from the identity.
+Eigen::MatrixXd ar1_inputs(int samples, int channels, double pole, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::MatrixXd x(samples, channels);
+  for (int i = 0; i < channels; ++i) {
+    double state = 0.0;
+    for (int t = 0; t < samples; ++t) x(t, i) = state = pole * state + normal(rng);
+  }
+  return x;
+}
+
 // y_j(t) = dt sum_i sum_tau h_ji(tau) x_i(t - tau) by the definition (inputs zero outside).
 Eigen::MatrixXd convolve(const Fir& fir, const Eigen::MatrixXd& x, double dt) {
   Eigen::MatrixXd y = Eigen::MatrixXd::Zero(x.rows(), fir.outputs());
@@ -324,14 +337,8 @@ BOOST_AUTO_TEST_CASE(least_squares_psi_is_the_normal_matrix_of_the_zero_padded_l
   // against an explicit QR solve of Z H = Y (mean-removed Y, as the estimator's outputs).
   const double fs = 200.0;
   const Fir fir = random_fir(2, 2, -3, 14, 51);
-  std::mt19937_64 rng(52);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  Eigen::MatrixXd x(1200, 2);
-  for (int i = 0; i < 2; ++i) {
-    double state = 0.0;
-    for (int t = 0; t < x.rows(); ++t) x(t, i) = state = 0.95 * state + normal(rng);
-    x.col(i).array() -= x.col(i).mean();
-  }
+  Eigen::MatrixXd x = ar1_inputs(1200, 2, 0.95, 52);
+  x.rowwise() -= x.colwise().mean();
   const Eigen::MatrixXd y = convolve(fir, x, 1.0 / fs);
   est::IrfOptions options{fir.first, fir.last()};
   const est::IrfResult toeplitz = est::estimate_irf(x, y, fs, options);
@@ -392,14 +399,9 @@ BOOST_AUTO_TEST_CASE(block_toeplitz_solve_equals_the_dense_solve_and_reports_the
   // its condition estimate (a lower bound of the exact 1-norm condition number, within 3x).
   const double fs = 100.0;
   const Fir fir = random_fir(2, 3, -4, 12, 61);
-  std::mt19937_64 rng(62);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  Eigen::MatrixXd x(3000, 3);
-  Eigen::Vector3d state = Eigen::Vector3d::Zero();
-  for (int t = 0; t < x.rows(); ++t) {
-    for (int i = 0; i < 3; ++i) state(i) = 0.8 * state(i) + normal(rng);
-    x.row(t) << state(0), state(1) + 0.6 * state(0), state(2) - 0.4 * state(1);
-  }
+  Eigen::MatrixXd x = ar1_inputs(3000, 3, 0.8, 62);
+  x.col(2) -= 0.4 * x.col(1);  // coupled: each channel mixes in its predecessor
+  x.col(1) += 0.6 * x.col(0);
   const Eigen::MatrixXd y = convolve(fir, x, 1.0 / fs);
   const est::IrfResult r = est::estimate_irf(x, y, fs, {fir.first, fir.last()});
   BOOST_REQUIRE(r.status.ok);
