@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <sstream>
 
 #include "data/error.hpp"
@@ -134,13 +135,16 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
                                std::min(segments, kMaxChunkSegments));
   const int groups = std::min(segments, kSegmentGroups);
   const int bins = nfft / 2 + 1;
-  // acc[g][a * channels + b] (a <= b): group g's sum over its segments of conj(X_a) X_b per bin.
-  std::vector<std::vector<Eigen::ArrayXcd>> acc(groups);
+  const int pairs = channels * (channels + 1) / 2;
+  // acc[g] (pairs x bins): column k holds group g's sums over its segments of conj(X_a) X_b at bin
+  // k for the pairs a <= b in row-major order (0,0), (0,1), ..., (1,1), ... Bin by bin, all pairs
+  // of a segment are added into one short column that stays in L1, instead of streaming a
+  // whole-spectrum accumulator per pair through memory for every segment; each sum still runs over
+  // the segments in order.
+  std::vector<Eigen::MatrixXcd> acc(groups);
   data::parallel_for_index(groups, [&](std::size_t g) {
-    std::vector<Eigen::ArrayXcd>& sum = acc[g];
-    sum.resize(static_cast<size_t>(channels) * channels);
-    for (int a = 0; a < channels; ++a)
-      for (int b = a; b < channels; ++b) sum[a * channels + b] = Eigen::ArrayXcd::Zero(bins);
+    Eigen::MatrixXcd& sum = acc[g];
+    sum = Eigen::MatrixXcd::Zero(pairs, bins);
     const int begin = static_cast<int>(static_cast<long>(segments) * g / groups);
     const int end = static_cast<int>(static_cast<long>(segments) * (g + 1) / groups);
     RealFft fft(nfft, chunk * channels);
@@ -161,21 +165,24 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
         }
       }
       const Eigen::MatrixXcd spectra = fft.forward(batch);
-      for (int s = 0; s < count; ++s) {
-        for (int a = 0; a < channels; ++a) {
-          const auto xa = spectra.col(static_cast<Eigen::Index>(a) * chunk + s).array().conjugate();
-          for (int b = a; b < channels; ++b) {
-            sum[a * channels + b] +=
-                xa * spectra.col(static_cast<Eigen::Index>(b) * chunk + s).array();
+      for (int k = 0; k < bins; ++k) {
+        std::complex<double>* total = sum.col(k).data();
+        for (int s = 0; s < count; ++s) {
+          int p = 0;
+          for (int a = 0; a < channels; ++a) {
+            const std::complex<double> xa = spectra(k, static_cast<Eigen::Index>(a) * chunk + s);
+            for (int b = a; b < channels; ++b, ++p) {
+              const std::complex<double> xb = spectra(k, static_cast<Eigen::Index>(b) * chunk + s);
+              // conj(xa) xb in real arithmetic (std::complex's product adds NaN/Inf recovery).
+              total[p] += std::complex<double>(xa.real() * xb.real() + xa.imag() * xb.imag(),
+                                               xa.real() * xb.imag() - xa.imag() * xb.real());
+            }
           }
         }
       }
     }
   });
-  for (int g = 1; g < groups; ++g) {
-    for (int a = 0; a < channels; ++a)
-      for (int b = a; b < channels; ++b) acc[0][a * channels + b] += acc[g][a * channels + b];
-  }
+  for (int g = 1; g < groups; ++g) acc[0] += acc[g];
 
   CrossSpectra out;
   out.sample_rate_hz = sample_rate_hz;
@@ -191,10 +198,10 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
   for (int k = 0; k < bins; ++k) {
     const bool unpaired = k == 0 || (nfft % 2 == 0 && k == bins - 1);
     const double factor = unpaired ? scale : 2.0 * scale;
-    for (int a = 0; a < channels; ++a) {
-      out.g[k](a, a) = acc[0][a * channels + a][k].real() * factor;  // exactly real on the diagonal
+    for (int a = 0, p = 0; a < channels; ++a) {
+      out.g[k](a, a) = acc[0](p++, k).real() * factor;  // exactly real on the diagonal
       for (int b = a + 1; b < channels; ++b) {
-        out.g[k](a, b) = acc[0][a * channels + b][k] * factor;
+        out.g[k](a, b) = acc[0](p++, k) * factor;
         out.g[k](b, a) = std::conj(out.g[k](a, b));
       }
     }
