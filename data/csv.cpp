@@ -285,6 +285,7 @@ void parse_rows(std::string_view text, Chunk& chunk, const std::vector<std::stri
 
 // Below this many bytes of rows a trial is parsed on the calling thread alone.
 constexpr std::size_t kParallelParseBytes = 1 << 20;
+constexpr std::size_t kChunksPerThread = 4;
 
 // Reads the header, then the data rows in up to max_threads() chunks of whole lines, in parallel,
 // in two passes: count each chunk's lines and rows, then parse every row
@@ -313,10 +314,14 @@ NumericCsv parse_numeric(std::string_view text, const std::string& source,
   }
 
   const std::size_t bytes = text.size() - pos;
-  // Chunks: one per thread (their boundaries do not change the values parsed).
+  // Chunks: up to kChunksPerThread per thread, so that a thread slowed down by other work on the
+  // machine leaves its remaining chunks to the others (their boundaries do not change the values
+  // parsed).
   const auto threads = static_cast<std::size_t>(std::max(1, max_threads()));
   const std::size_t wanted =
-      bytes < kParallelParseBytes ? 1 : std::min(threads, bytes / (kParallelParseBytes / 2));
+      bytes < kParallelParseBytes
+          ? 1
+          : std::min(threads * kChunksPerThread, bytes / (kParallelParseBytes / 2));
   std::vector<Chunk> chunks(1);
   chunks[0].begin = pos;
   for (std::size_t k = 1; k < wanted; ++k) {
