@@ -137,10 +137,10 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
   const int bins = nfft / 2 + 1;
   const int pairs = channels * (channels + 1) / 2;
   // acc[g] (pairs x bins): column k holds group g's sums over its segments of conj(X_a) X_b at bin
-  // k for the pairs a <= b in row-major order (0,0), (0,1), ..., (1,1), ... Bin by bin, all pairs
-  // of a segment are added into one short column that stays in L1, instead of streaming a
-  // whole-spectrum accumulator per pair through memory for every segment; each sum still runs over
-  // the segments in order.
+  // k for the pairs a <= b in row-major order (0,0), (0,1), ..., (1,1), ... Bin by bin, each pair
+  // sums a chunk's segments in registers into one short column that stays in L1, instead of
+  // streaming a whole-spectrum accumulator per pair through memory for every segment; each sum
+  // still runs over the segments in order.
   std::vector<Eigen::MatrixXcd> acc(groups);
   data::parallel_for_index(groups, [&](std::size_t g) {
     Eigen::MatrixXcd& sum = acc[g];
@@ -167,16 +167,20 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
       const Eigen::MatrixXcd spectra = fft.forward(batch);
       for (int k = 0; k < bins; ++k) {
         std::complex<double>* total = sum.col(k).data();
-        for (int s = 0; s < count; ++s) {
-          int p = 0;
-          for (int a = 0; a < channels; ++a) {
-            const std::complex<double> xa = spectra(k, static_cast<Eigen::Index>(a) * chunk + s);
-            for (int b = a; b < channels; ++b, ++p) {
-              const std::complex<double> xb = spectra(k, static_cast<Eigen::Index>(b) * chunk + s);
-              // conj(xa) xb in real arithmetic (std::complex's product adds NaN/Inf recovery).
-              total[p] += std::complex<double>(xa.real() * xb.real() + xa.imag() * xb.imag(),
-                                               xa.real() * xb.imag() - xa.imag() * xb.real());
+        const std::complex<double>* bin = spectra.data() + k;  // column c at bin[c * bins]
+        for (int a = 0, p = 0; a < channels; ++a) {
+          const std::complex<double>* xa = bin + static_cast<Eigen::Index>(a) * chunk * bins;
+          for (int b = a; b < channels; ++b, ++p) {
+            const std::complex<double>* xb = bin + static_cast<Eigen::Index>(b) * chunk * bins;
+            // conj(xa) xb in real arithmetic (std::complex's product adds NaN/Inf recovery),
+            // summed over the chunk's segments in order in registers.
+            double re = total[p].real(), im = total[p].imag();
+            for (int s = 0; s < count; ++s) {
+              const std::complex<double> u = xa[s * bins], v = xb[s * bins];
+              re += (u.real() * v.real() + u.imag() * v.imag());
+              im += (u.real() * v.imag() - u.imag() * v.real());
             }
+            total[p] = std::complex<double>(re, im);
           }
         }
       }
