@@ -6,24 +6,26 @@
 namespace stiffid::estimators {
 namespace {
 
-// Rotates rows p and q of g over columns [from, end) so that g(q, col) becomes 0 (Givens).
-void givens(Eigen::MatrixXd& g, int p, int q, int col, int from) {
-  const double a = g(p, col);
-  const double b = g(q, col);
+// The generators are row-major: every rotation runs along two contiguous rows.
+using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+// Rotates rows p and q of g over columns [from, from + len) so that g(q, from) becomes 0 (Givens).
+void givens(RowMatrix& g, int p, int q, int from, int len) {
+  double* const x = g.row(p).data() + from;
+  double* const y = g.row(q).data() + from;
+  const double a = x[0];
+  const double b = y[0];
   if (b == 0.0) return;
   const double r = std::hypot(a, b);
   const double c = a / r;
   const double s = b / r;
-  const int len = static_cast<int>(g.cols()) - from;
-  auto x = g.row(p).segment(from, len);
-  auto y = g.row(q).segment(from, len);
   for (int j = 0; j < len; ++j) {
-    const double xj = x(j);
-    const double yj = y(j);
-    x(j) = c * xj + s * yj;
-    y(j) = c * yj - s * xj;
+    const double xj = x[j];
+    const double yj = y[j];
+    x[j] = c * xj + s * yj;
+    y[j] = c * yj - s * xj;
   }
-  g(q, col) = 0.0;
+  y[0] = 0.0;
 }
 
 }  // namespace
@@ -37,49 +39,49 @@ BlockToeplitzCholesky::BlockToeplitzCholesky(
   const Eigen::LLT<Eigen::MatrixXd> leading(first_block_row.leftCols(blocks_n));
   if (leading.info() != Eigen::Success) return;
   // G1 = U0^{-T} X, X the first block row; G2 = G1 without its first block.
-  Eigen::MatrixXd g1 = leading.matrixL().solve(first_block_row);
-  Eigen::MatrixXd g2 = g1;
+  RowMatrix g1 = leading.matrixL().solve(first_block_row);
+  RowMatrix g2 = g1;
   g2.leftCols(blocks_n).setZero();
-  // Only the upper triangle is written (block row k from column k N on, exact zeros below the
-  // diagonal inside its diagonal block); the strictly lower part is never read.
+  // Step k works on columns [k N, n). G1 moves one block to the right at every step (Z applied
+  // to the generator of the Schur complement); instead of moving it, column j of the shifted G1
+  // is kept in physical column j - k N: its active part is always physical [0, n - k N), and the
+  // columns shifted out at the end are simply no longer read. G2 is not shifted.
+  // Only the upper triangle of U is written (block row k from column k N on, exact zeros below
+  // the diagonal inside its diagonal block); the strictly lower part is never read.
   upper_.resize(n, n);
   for (int k = 0; k < lags; ++k) {
     const int col0 = k * blocks_n;
     if (k > 0) {
       for (int c = 0; c < blocks_n; ++c) {
         const int col = col0 + c;
+        const int len = n - col;
         // G1 rows c+1.. and G2 rows 1.. are rotated into G1 row c and G2 row 0 (orthogonal within
         // each generator: G1^T G1 and G2^T G2 are unchanged); columns before `col` are zero in
         // every row involved.
-        for (int r = c + 1; r < blocks_n; ++r) givens(g1, c, r, col, col);
-        for (int r = 1; r < blocks_n; ++r) givens(g2, 0, r, col, col);
-        const double a = g1(c, col);
-        const double b = g2(0, col);
+        for (int r = c + 1; r < blocks_n; ++r) givens(g1, c, r, c, len);
+        for (int r = 1; r < blocks_n; ++r) givens(g2, 0, r, col, len);
+        double* const x = g1.row(c).data() + c;    // G1 row c from column `col`
+        double* const y = g2.row(0).data() + col;  // G2 row 0 from column `col`
+        const double a = x[0];
+        const double b = y[0];
         // Positive definiteness of the Schur complement: |b| < |a|.
         if (!(std::abs(b) < std::abs(a))) return;
         const double rho = b / a;
         const double ch = 1.0 / std::sqrt((1.0 - rho) * (1.0 + rho));
         // Hyperbolic rotation [ch, -sh; -sh, ch], sh = rho ch, in the mixed form:
         // x' = ch (x - rho y), y' = y / ch - rho x'.
-        const int len = n - col;
-        auto x = g1.row(c).segment(col, len);
-        auto y = g2.row(0).segment(col, len);
         for (int j = 0; j < len; ++j) {
-          const double xj = ch * (x(j) - rho * y(j));
-          y(j) = y(j) / ch - rho * xj;
-          x(j) = xj;
+          const double xj = ch * (x[j] - rho * y[j]);
+          y[j] = y[j] / ch - rho * xj;
+          x[j] = xj;
         }
-        y(0) = 0.0;
-        if (x(0) < 0.0) x *= -1.0;  // positive diagonal
+        y[0] = 0.0;
+        if (x[0] < 0.0) {  // positive diagonal
+          for (int j = 0; j < len; ++j) x[j] = -x[j];
+        }
       }
     }
-    upper_.block(col0, col0, blocks_n, n - col0) = g1.rightCols(n - col0);
-    // G1 moves one block to the right (Z applied to the generator of the Schur complement).
-    if (k + 1 < lags) {
-      const int keep = n - col0 - blocks_n;  // columns [col0, n - N) move to [col0 + N, n)
-      g1.middleCols(col0 + blocks_n, keep) = g1.middleCols(col0, keep).eval();
-      g1.middleCols(col0, blocks_n).setZero();
-    }
+    upper_.block(col0, col0, blocks_n, n - col0) = g1.leftCols(n - col0);
   }
   ok_ = true;
 }
