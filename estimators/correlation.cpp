@@ -141,16 +141,19 @@ Eigen::MatrixXd BlockedSignals::correlate(const std::vector<ChannelPair>& pairs)
     for (int b = begin; b < end; ++b) {
       const int start = b * block;
       const int length = std::min(block, s - start);
-      p_block.setZero();
+      // Only the rows no sample is copied into are zeroed.
+      p_block.bottomRows(n - length).setZero();
       for (std::size_t c = 0; c < firsts.size(); ++c) {
         copy_centred(firsts[c], start, length, p_block.col(c), 0);
       }
-      // q's window [start - L, start - L + n) clipped to the record.
+      // q's window [start - L, start - L + n) clipped to the record: rows [at, at + to - from).
       const int from = std::max(start - max_lag_, 0);
       const int to = std::min(start - max_lag_ + n, s);
-      q_block.setZero();
+      const int at = from - (start - max_lag_);
+      q_block.topRows(at).setZero();
+      q_block.bottomRows(n - at - (to - from)).setZero();
       for (std::size_t c = 0; c < seconds.size(); ++c) {
-        copy_centred(seconds[c], from, to - from, q_block.col(c), from - (start - max_lag_));
+        copy_centred(seconds[c], from, to - from, q_block.col(c), at);
       }
       const Eigen::MatrixXcd p_spectra = first_fft.forward(p_block);
       const Eigen::MatrixXcd q_spectra = second_fft.forward(q_block);
@@ -203,12 +206,15 @@ Eigen::MatrixXd BlockedSignals::convolve(const Eigen::Ref<const Eigen::MatrixXd>
       const long w0 = static_cast<long>(t0) - first_lag - (taps - 1);  // x index of window row 0
       const long from = std::max(w0, 0L);
       const long to = std::min(w0 + n, static_cast<long>(s));
-      x_window.setZero();
-      if (to > from) {
+      if (to > from) {  // rows [from - w0, to - w0) hold samples, the others are zero
+        x_window.topRows(from - w0).setZero();
+        x_window.bottomRows(n - (to - w0)).setZero();
         for (int i = 0; i < inputs; ++i) {
           copy_centred(i, static_cast<int>(from), static_cast<int>(to - from), x_window.col(i),
                        static_cast<int>(from - w0));
         }
+      } else {
+        x_window.setZero();
       }
       const Eigen::MatrixXcd x_spectra = input_fft.forward(x_window);
       products.setZero();

@@ -392,9 +392,9 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
   for (int j = 0; j < n_out; ++j) {
     const auto residual = spectra.centred(n_in + j) - result.predicted.col(j);
     const double mean = residual.mean();
-    const double residual_variance = (residual.array() - mean).square().sum() / samples;
-    result.vaf_percent(j) = 100.0 * (1.0 - residual_variance / output_power(j));
-    residual_energy += residual.squaredNorm();
+    const double spread = (residual.array() - mean).square().sum();  // S x residual variance
+    result.vaf_percent(j) = 100.0 * (1.0 - spread / samples / output_power(j));
+    residual_energy += spread + samples * mean * mean;  // sum of residual^2
   }
   result.r2_percent = 100.0 * (1.0 - residual_energy / (output_power.sum() * samples));
   return result;
