@@ -93,19 +93,29 @@ Eigen::MatrixXd BlockToeplitzCholesky::solve(const Eigen::Ref<const Eigen::Matri
   return x;
 }
 
-double BlockToeplitzCholesky::rcond(double l1_norm) const {
-  if (!ok_ || !(l1_norm > 0.0)) return 0.0;
-  // Hager (1984) / Higham (1988) estimate of ||T^{-1}||_1 for symmetric T: maximize
-  // ||T^{-1} x||_1 over the unit 1-norm ball by a few steps of a subgradient ascent.
+Eigen::MatrixXd BlockToeplitzCholesky::rcond_start() const {
+  // Hager's start x = 1/n and Higham's alternating vector.
   const int n = size();
-  // Hager's start x = 1/n and Higham's alternating vector, solved together (one pass over U).
   Eigen::MatrixXd start(n, 2);
   start.col(0).setConstant(1.0 / n);
   for (int i = 0; i < n; ++i) {
     start(i, 1) = (i % 2 == 0 ? 1.0 : -1.0) * (1.0 + i / (n - 1.0 + (n == 1)));
   }
-  const Eigen::MatrixXd solved = solve(start);
-  Eigen::VectorXd x = start.col(0);
+  return start;
+}
+
+double BlockToeplitzCholesky::rcond(double l1_norm) const {
+  if (!ok_ || !(l1_norm > 0.0)) return 0.0;
+  return rcond(l1_norm, solve(rcond_start()));
+}
+
+double BlockToeplitzCholesky::rcond(double l1_norm,
+                                    const Eigen::Ref<const Eigen::MatrixXd>& solved) const {
+  if (!ok_ || !(l1_norm > 0.0)) return 0.0;
+  // Hager (1984) / Higham (1988) estimate of ||T^{-1}||_1 for symmetric T: maximize
+  // ||T^{-1} x||_1 over the unit 1-norm ball by a few steps of a subgradient ascent.
+  const int n = size();
+  Eigen::VectorXd x = Eigen::VectorXd::Constant(n, 1.0 / n);  // rcond_start().col(0)
   Eigen::VectorXd y = solved.col(0);
   double estimate = y.lpNorm<1>();
   int last = -1;

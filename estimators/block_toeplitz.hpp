@@ -34,6 +34,11 @@ class BlockToeplitzCholesky {
   /// Hager's method with Higham's refinements (as LAPACK dpocon and Eigen's LLT::rcond);
   /// `l1_norm` = ||T||_1. 0 when not ok().
   double rcond(double l1_norm) const;
+  /// The two start vectors of the estimate (n x 2): solving them together with other right-hand
+  /// sides in one solve() and passing T^{-1} start to rcond saves one pass over the factor.
+  Eigen::MatrixXd rcond_start() const;
+  /// rcond(l1_norm) from `solved_start` = T^{-1} rcond_start() (n x 2).
+  double rcond(double l1_norm, const Eigen::Ref<const Eigen::MatrixXd>& solved_start) const;
 
  private:
   bool ok_ = false;

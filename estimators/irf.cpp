@@ -193,26 +193,35 @@ Solution solve_block_toeplitz(const Eigen::MatrixXd& phi_inputs, int inputs, int
   const double l1_norm = column_sums.maxCoeff();
   Solution s;
   const BlockToeplitzCholesky factor(first_row);
-  const double rcond = factor.ok() ? factor.rcond(l1_norm) : 0.0;
-  s.condition_number = rcond > 0.0 ? 1.0 / rcond : std::numeric_limits<double>::infinity();
-  if (!factor.ok() || rcond < kMinReciprocalCondition) {
-    s.status = singular_psi(rcond);
+  if (!factor.ok()) {
+    s.condition_number = std::numeric_limits<double>::infinity();
+    s.status = singular_psi(0.0);
     return s;
   }
+  // The right-hand sides in lag-major order, with the condition estimate's two start vectors:
+  // one pass over the factor solves them all.
   const Eigen::Index n = first_row.cols();
-  Eigen::MatrixXd lag_major(n, phi.cols());
+  const Eigen::Index m = phi.cols();
+  Eigen::MatrixXd lag_major(n, m + 2);
   for (int i = 0; i < inputs; ++i) {
     for (int a = 0; a < lags; ++a) {
-      lag_major.row(static_cast<Eigen::Index>(a) * inputs + i) =
+      lag_major.row(static_cast<Eigen::Index>(a) * inputs + i).head(m) =
           phi.row(static_cast<Eigen::Index>(i) * lags + a);
     }
   }
+  lag_major.rightCols(2) = factor.rcond_start();
   const Eigen::MatrixXd x = factor.solve(lag_major);
-  s.coefficients.resize(n, phi.cols());
+  const double rcond = factor.rcond(l1_norm, x.rightCols(2));
+  s.condition_number = rcond > 0.0 ? 1.0 / rcond : std::numeric_limits<double>::infinity();
+  if (rcond < kMinReciprocalCondition) {
+    s.status = singular_psi(rcond);
+    return s;
+  }
+  s.coefficients.resize(n, m);
   for (int i = 0; i < inputs; ++i) {
     for (int a = 0; a < lags; ++a) {
       s.coefficients.row(static_cast<Eigen::Index>(i) * lags + a) =
-          x.row(static_cast<Eigen::Index>(a) * inputs + i);
+          x.row(static_cast<Eigen::Index>(a) * inputs + i).head(m);
     }
   }
   s.rank = static_cast<int>(n);
