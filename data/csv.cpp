@@ -191,25 +191,28 @@ struct NumericCsv {
 
 bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
 
-// A row of exactly `columns` plain numbers (optional blanks around each, no quotes) parsed in place
-// into out[0..columns). False for anything else: the checked path then parses the row again and
-// names what is wrong. A leading '+' is accepted, as by strtod.
-bool parse_plain_row(std::string_view row, std::size_t columns, double* out) {
-  const char* p = row.data();
-  const char* const end = p + row.size();
+// The line starting at p (the text runs to `end`) when it is a row of exactly `columns` plain
+// numbers (optional blanks around each, no quotes) ending at a newline or at `end`: parsed in place
+// into out[0..columns), returning the start of the next line (or `end`). nullptr for anything else
+// (a blank or comment line, quotes, a ragged or non-numeric row): the caller then cuts the line
+// out and takes the checked path, which names what is wrong. The row's end is found by the parse
+// itself, so a plain trial is read in one pass. A leading '+' is accepted, as by strtod.
+const char* parse_plain_line(const char* p, const char* const end, std::size_t columns,
+                             double* out) {
   for (std::size_t c = 0; c < columns; ++c) {
     while (p < end && is_blank(*p)) ++p;
     if (end - p > 1 && *p == '+' && p[1] != '-') ++p;
     const auto [ptr, ec] = fast_float::from_chars(p, end, out[c]);
-    if (ec != std::errc() || !std::isfinite(out[c])) return false;
+    if (ec != std::errc() || !std::isfinite(out[c])) return nullptr;
     p = ptr;
     while (p < end && is_blank(*p)) ++p;
     if (c + 1 < columns) {
-      if (p == end || *p != ',') return false;
+      if (p == end || *p != ',') return nullptr;
       ++p;
     }
   }
-  return p == end;
+  if (p == end) return end;
+  return *p == '\n' ? p + 1 : nullptr;
 }
 
 // The checked path for one data row: every cell as a finite double into out[0..columns), or an
@@ -267,16 +270,23 @@ void parse_rows(std::string_view text, Chunk& chunk, const std::vector<std::stri
   std::vector<double> cells(count);
   int line = chunk.first_line - 1;
   int row_index = chunk.first_row;  // rows go to first_row, first_row + 1, ...
-  std::size_t pos = chunk.begin;
-  while (pos < chunk.end) {
-    const std::size_t eol = std::min(text.find('\n', pos), chunk.end);
-    const std::string_view row = text.substr(pos, eol - pos);
-    pos = eol + 1;
+  const char* p = text.data() + chunk.begin;
+  const char* const end = text.data() + chunk.end;
+  while (p < end) {
     ++line;
-    if (!data_row(row)) continue;
-    if (!parse_plain_row(row, count, cells.data())) {
+    const char* next = parse_plain_line(p, end, count, cells.data());
+    if (next == nullptr) {  // not a plain row: cut the line out, skip it or check it
+      const char* eol = static_cast<const char*>(std::memchr(p, '\n', end - p));
+      if (eol == nullptr) eol = end;
+      const std::string_view row(p, static_cast<std::size_t>(eol - p));
+      next = eol < end ? eol + 1 : end;
+      if (!data_row(row)) {
+        p = next;
+        continue;
+      }
       parse_checked_row(row, header, source, line, cells.data());
     }
+    p = next;
     for (std::size_t c = 0; c < count; ++c) columns[c][row_index] = cells[c];
     lines[row_index++] = line;
   }
