@@ -21,19 +21,25 @@ constexpr int kMaxChunkSegments = 32;
 // does not depend on the thread count.
 constexpr int kSegmentGroups = 8;
 
-// Removes the trend of one segment in place (scipy.signal.detrend on a segment).
-void detrend_segment(Eigen::Ref<Eigen::VectorXd> x, Detrend detrend) {
-  if (detrend == Detrend::none) return;
+// One segment x detrended as scipy.signal.detrend does and multiplied by the window, into out (as
+// long as x), in one pass over x for the mean (two for a line) and one to write.
+void prepare_segment(const Eigen::Ref<const Eigen::VectorXd>& x, Detrend detrend,
+                     const Eigen::VectorXd& window, Eigen::Ref<Eigen::VectorXd> out) {
+  if (detrend == Detrend::none) {
+    out = x.cwiseProduct(window);
+    return;
+  }
   const double n = static_cast<double>(x.size());
   const double mean = x.mean();
-  x.array() -= mean;
-  if (detrend == Detrend::linear) {
-    // Least-squares line through (k, x_k): with centred abscissae t_k = k - (n - 1) / 2 the slope
-    // is sum t x / sum t^2 and sum t^2 = n (n^2 - 1) / 12.
-    const Eigen::ArrayXd t = Eigen::ArrayXd::LinSpaced(x.size(), -(n - 1) / 2, (n - 1) / 2);
-    const double slope = (t * x.array()).sum() / (n * (n * n - 1) / 12.0);
-    x.array() -= slope * t;
+  if (detrend == Detrend::constant) {
+    out = (x.array() - mean).matrix().cwiseProduct(window);
+    return;
   }
+  // Least-squares line through (k, x_k): with centred abscissae t_k = k - (n - 1) / 2 the slope is
+  // sum t (x - mean) / sum t^2 and sum t^2 = n (n^2 - 1) / 12.
+  const Eigen::ArrayXd t = Eigen::ArrayXd::LinSpaced(x.size(), -(n - 1) / 2, (n - 1) / 2);
+  const double slope = (t * (x.array() - mean)).sum() / (n * (n * n - 1) / 12.0);
+  out = ((x.array() - mean) - slope * t).matrix().cwiseProduct(window);
 }
 
 }  // namespace
@@ -149,7 +155,6 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
     const int end = static_cast<int>(static_cast<long>(segments) * (g + 1) / groups);
     RealFft fft(nfft, chunk * channels);
     Eigen::MatrixXd batch = Eigen::MatrixXd::Zero(nfft, static_cast<Eigen::Index>(chunk) * channels);
-    Eigen::VectorXd piece(length);
     for (int first = begin; first < end; first += chunk) {
       const int count = std::min(chunk, end - first);
       for (int c = 0; c < channels; ++c) {
@@ -159,9 +164,9 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
             column.setZero();
             continue;
           }
-          piece = signals.col(c).segment(static_cast<Eigen::Index>(first + s) * step, length);
-          detrend_segment(piece, options.detrend);
-          column.head(length) = piece.cwiseProduct(window);
+          prepare_segment(
+              signals.col(c).segment(static_cast<Eigen::Index>(first + s) * step, length),
+              options.detrend, window, column.head(length));
         }
       }
       const Eigen::MatrixXcd spectra = fft.forward(batch);
