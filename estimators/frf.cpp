@@ -24,27 +24,38 @@ double coherence(std::complex<double> cross, double auto_a, double auto_b) {
   return denominator > 0.0 ? clamp_unit(std::norm(cross) / denominator) : 0.0;
 }
 
-// Bendat & Piersol partial coherence of input i and output channel y of the spectral matrix g
-// (inputs 0..n-1), conditioned on the other inputs r: 2x2 Schur complement
-// S = G_{[i,y][i,y]} - G_{[i,y] r} G_rr^-1 G_{r [i,y]}, then |S01|^2 / (S00 S11).
-double partial_coherence(const Eigen::MatrixXcd& g, int n, int i, int y) {
-  std::vector<int> keep = {i, y};
+// Bendat & Piersol partial coherences of every input i with every output j (outputs are channels
+// n..n+m-1 of the spectral matrix g, inputs 0..n-1), each conditioned on the other inputs r: with
+// the conditioned spectra S = G_{[i,Y][i,Y]} - G_{[i,Y] r} G_rr^-1 G_{r [i,Y]} (Y all outputs,
+// one factorization of G_rr per input), gamma^2_ij = |S_{i y_j}|^2 / (S_ii S_{y_j y_j}).
+// Returns (m x n).
+Eigen::MatrixXd partial_coherences(const Eigen::MatrixXcd& g, int n, int m) {
+  Eigen::MatrixXd out(m, n);
+  std::vector<int> keep(static_cast<std::size_t>(m) + 1);
   std::vector<int> rest;
-  for (int k = 0; k < n; ++k)
-    if (k != i) rest.push_back(k);
-  Eigen::Matrix2cd s;
-  for (int a = 0; a < 2; ++a)
-    for (int b = 0; b < 2; ++b) s(a, b) = g(keep[a], keep[b]);
-  if (!rest.empty()) {
-    const int r = static_cast<int>(rest.size());
-    Eigen::MatrixXcd grr(r, r), grk(r, 2);
-    for (int a = 0; a < r; ++a) {
-      for (int b = 0; b < r; ++b) grr(a, b) = g(rest[a], rest[b]);
-      for (int b = 0; b < 2; ++b) grk(a, b) = g(rest[a], keep[b]);
+  for (int i = 0; i < n; ++i) {
+    keep[0] = i;
+    for (int j = 0; j < m; ++j) keep[j + 1] = n + j;
+    rest.clear();
+    for (int k = 0; k < n; ++k)
+      if (k != i) rest.push_back(k);
+    Eigen::MatrixXcd s(m + 1, m + 1);
+    for (int a = 0; a <= m; ++a)
+      for (int b = 0; b <= m; ++b) s(a, b) = g(keep[a], keep[b]);
+    if (!rest.empty()) {
+      const int r = static_cast<int>(rest.size());
+      Eigen::MatrixXcd grr(r, r), grk(r, m + 1);
+      for (int a = 0; a < r; ++a) {
+        for (int b = 0; b < r; ++b) grr(a, b) = g(rest[a], rest[b]);
+        for (int b = 0; b <= m; ++b) grk(a, b) = g(rest[a], keep[b]);
+      }
+      s -= grk.adjoint() * grr.ldlt().solve(grk);
     }
-    s -= grk.adjoint() * grr.ldlt().solve(grk);
+    for (int j = 0; j < m; ++j) {
+      out(j, i) = coherence(s(0, j + 1), s(0, 0).real(), s(j + 1, j + 1).real());
+    }
   }
-  return coherence(s(0, 1), s(0, 0).real(), s(1, 1).real());
+  return out;
 }
 
 // eps = factor (1 - g2)^power / (|g| sqrt(dof)): power 1/2, factor 1/sqrt(2) for |H|; power 1,
@@ -155,6 +166,7 @@ FrfResult estimate_frf(const CrossSpectra& spectra, int inputs, const FrfOptions
       out.h[f] = gxx.ldlt().solve(gxy).transpose();
     }
 
+    const Eigen::MatrixXd partial_all = n == 1 ? Eigen::MatrixXd() : partial_coherences(g, n, m);
     for (int j = 0; j < m; ++j) {
       const double gyy = g(n + j, n + j).real();
       // Eq 5: sum_i conj(H_ji) G_{x_i y_j} / G_yy, real up to round-off.
@@ -166,7 +178,7 @@ FrfResult estimate_frf(const CrossSpectra& spectra, int inputs, const FrfOptions
                normalized_error(multiple, nd_conditioned, std::sqrt(2.0), 1.0), c, 1.0);
       for (int i = 0; i < n; ++i) {
         const double ordinary = coherence(gxy(i, j), d[i], gyy);
-        const double partial = n == 1 ? ordinary : partial_coherence(g, n, i, n + j);
+        const double partial = n == 1 ? ordinary : partial_all(j, i);
         out.ordinary_coherence[f](j, i) = ordinary;
         out.partial_coherence[f](j, i) = partial;
         set_band(err.ordinary_coherence, f, j, i, ordinary,
