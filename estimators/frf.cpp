@@ -10,11 +10,15 @@
 #include <limits>
 #include <sstream>
 
+#include "data/parallel.hpp"
+
 namespace stiffid::estimators {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// Fixed groups of consecutive frequency bins computed in parallel.
+constexpr int kBinGroups = 16;
 
 double clamp_unit(double v) { return std::isfinite(v) ? std::clamp(v, 0.0, 1.0) : 0.0; }
 
@@ -134,9 +138,9 @@ FrfResult estimate_frf(const CrossSpectra& spectra, int inputs, const FrfOptions
   const double nd_conditioned = nd - n + 1;
   const double c = options.confidence_factor;
 
-  int coupled_bins = 0;
-  int first_coupled = -1;
-  for (int f = 0; f < bins; ++f) {
+  // Bins are independent: fixed groups of consecutive bins run in parallel, each bin written only
+  // by its own iteration (the same values at any thread count).
+  auto one_bin = [&](int f) {
     const Eigen::MatrixXcd& g = spectra.g[f];
     const Eigen::MatrixXcd gxx = g.topLeftCorner(n, n);
     const Eigen::MatrixXcd gxy = g.topRightCorner(n, m);
@@ -154,9 +158,6 @@ FrfResult estimate_frf(const CrossSpectra& spectra, int inputs, const FrfOptions
       out.coupling_reciprocal_condition[f] = std::max(0.0, mu[0]) / mu[n - 1];
     } else {
       out.coupling_reciprocal_condition[f] = 0.0;
-    }
-    if (out.in_band[f] && out.coupling_reciprocal_condition[f] < options.min_reciprocal_condition) {
-      if (coupled_bins++ == 0) first_coupled = f;
     }
 
     // Eq 2: column j of Gxx^-1 Gxy holds H(j, :).
@@ -188,6 +189,19 @@ FrfResult estimate_frf(const CrossSpectra& spectra, int inputs, const FrfOptions
         set_band(err.frf_magnitude, f, j, i, std::abs(out.h[f](j, i)),
                  normalized_error(partial, 2.0 * nd_conditioned, 1.0, 0.5), c, kInf);
       }
+    }
+  };
+  const int groups = std::min(bins, kBinGroups);
+  data::parallel_for_index(groups, [&](std::size_t group) {
+    const int begin = static_cast<int>(static_cast<long>(bins) * group / groups);
+    const int end = static_cast<int>(static_cast<long>(bins) * (group + 1) / groups);
+    for (int f = begin; f < end; ++f) one_bin(f);
+  });
+  int coupled_bins = 0;
+  int first_coupled = -1;
+  for (int f = 0; f < bins; ++f) {
+    if (out.in_band[f] && out.coupling_reciprocal_condition[f] < options.min_reciprocal_condition) {
+      if (coupled_bins++ == 0) first_coupled = f;
     }
   }
 
