@@ -3,10 +3,11 @@
 // (fitting/lumped_fit.hpp);
 // `stiffid fit kv|pt --frf FRF.json [--band LO:HI] [--min-coherence 0.5] [...]`: fit to the
 // compliance estimated by `stiffid frf` (fitting/frf_fit.hpp);
-// `stiffid fit kv --tfa TFA.json [--interval A:B]`: constant joint-space Kelvin-Voigt matrices
-// (I, C, K in kg m^2, N m s/rad, N m/rad) from the K(t), C(t), M(t) tracks of `stiffid tfa` over
-// the valid frames between A and B s (fitting/tfa_fit.hpp). A fit that does not converge writes
-// no file and exits 1.
+// `stiffid fit kv|duffing --tfa TFA.json [--interval A:B]`: constant joint-space Kelvin-Voigt
+// matrices (I, C, K in kg m^2, N m s/rad, N m/rad), or Duffing's with the diagonal cubic stiffness
+// B (N m/rad^3) from the amplitude dependence of the modal frequencies, from the K(t), C(t), M(t)
+// tracks and modal amplitudes of `stiffid tfa` over the valid frames between A and B s
+// (fitting/tfa_fit.hpp). A fit that does not converge writes no file and exits 1.
 
 #include <cmath>
 #include <memory>
@@ -152,8 +153,8 @@ void add_fit_command(CLI::App& app) {
                   "with --frf: leave out frequencies where an output's multiple coherence is lower")
       ->capture_default_str();
   cmd->add_option("--tfa", args->tfa,
-                  "fit kv (joint-space I, C, K) to the K(t), C(t), M(t) tracks of a `stiffid tfa` "
-                  "JSON");
+                  "fit kv (joint-space I, C, K) or duffing (and the diagonal B, N m/rad^3, from "
+                  "the modal amplitudes) to the K(t), C(t), M(t) tracks of a `stiffid tfa` JSON");
   cmd->add_option("--interval", args->interval,
                   "with --tfa: frame times used, A:B in s (default all valid frames)");
   cmd->add_option("-o,--output", args->out, "output JSON (stdout when absent)");

@@ -197,7 +197,10 @@ std::map<std::string, StartRange> default_frf_ranges(LumpedModel model, const Fr
 LumpedFitResult fit_frf(const FrfTarget& t, const FrfFitOptions& o) {
   if (o.model == LumpedModel::duffing) {
     throw InputError("fit duffing --frf: the Duffing model is nonlinear and has no frequency "
-                     "response; fit it to a trial (TRIAL.csv --inputs --outputs)");
+                     "response; an FRF measured at one excitation level only holds its "
+                     "equivalent linear stiffness (K + 3 B E[x^2] for Gaussian motion), which "
+                     "does not separate K from B: fit it to a trial (TRIAL.csv --inputs "
+                     "--outputs) or to a tfa free response (--tfa)");
   }
   if (o.starts < 1) throw InputError("--starts: expected at least 1");
   if (o.max_iterations < 1) throw InputError("--max-iterations: expected at least 1");
