@@ -46,9 +46,11 @@ BlockToeplitzCholesky::BlockToeplitzCholesky(
   // to the generator of the Schur complement); instead of moving it, column j of the shifted G1
   // is kept in physical column j - k N: its active part is always physical [0, n - k N), and the
   // columns shifted out at the end are simply no longer read. G2 is not shifted.
-  // Only the upper triangle of U is written (block row k from column k N on, exact zeros below
-  // the diagonal inside its diagonal block); the strictly lower part is never read.
-  upper_.resize(n, n);
+  // U is stored transposed, L = U^T (column-major): block row k of U, the first N rows of G1 from
+  // column k N on, goes to block column k of L as contiguous column segments. Only the lower
+  // triangle of L is written (exact zeros above the diagonal inside its diagonal block); the
+  // strictly upper part is never read.
+  lower_.resize(n, n);
   for (int k = 0; k < lags; ++k) {
     const int col0 = k * blocks_n;
     if (k > 0) {
@@ -81,15 +83,16 @@ BlockToeplitzCholesky::BlockToeplitzCholesky(
         }
       }
     }
-    upper_.block(col0, col0, blocks_n, n - col0) = g1.leftCols(n - col0);
+    lower_.block(col0, col0, n - col0, blocks_n) = g1.leftCols(n - col0).transpose();
   }
   ok_ = true;
 }
 
 Eigen::MatrixXd BlockToeplitzCholesky::solve(const Eigen::Ref<const Eigen::MatrixXd>& b) const {
-  const auto u = upper_.triangularView<Eigen::Upper>();
-  Eigen::MatrixXd x = u.transpose().solve(b);
-  u.solveInPlace(x);
+  // T = L L^T: L y = b, then L^T x = y.
+  const auto l = lower_.triangularView<Eigen::Lower>();
+  Eigen::MatrixXd x = l.solve(b);
+  l.transpose().solveInPlace(x);
   return x;
 }
 

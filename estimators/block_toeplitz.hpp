@@ -24,10 +24,10 @@ class BlockToeplitzCholesky {
   explicit BlockToeplitzCholesky(const Eigen::Ref<const Eigen::MatrixXd>& first_block_row);
 
   bool ok() const { return ok_; }
-  int size() const { return static_cast<int>(upper_.rows()); }  ///< n = N L
+  int size() const { return static_cast<int>(lower_.rows()); }  ///< n = N L
   /// U (n x n, upper triangular, positive diagonal) with T = U^T U, as a new matrix (the factor
-  /// is stored without its zero lower part); meaningful when ok().
-  Eigen::MatrixXd upper() const { return upper_.triangularView<Eigen::Upper>(); }
+  /// is stored as L = U^T without its zero upper part); meaningful when ok().
+  Eigen::MatrixXd upper() const { return lower_.triangularView<Eigen::Lower>().transpose(); }
   /// T^{-1} b for b (n x M) in lag-major order; requires ok().
   Eigen::MatrixXd solve(const Eigen::Ref<const Eigen::MatrixXd>& b) const;
   /// Estimate of the reciprocal condition number 1 / (||T||_1 ||T^{-1}||_1), ||T^{-1}||_1 by
@@ -42,7 +42,7 @@ class BlockToeplitzCholesky {
 
  private:
   bool ok_ = false;
-  Eigen::MatrixXd upper_;
+  Eigen::MatrixXd lower_;  ///< L = U^T, column-major: block row k of U is block column k of L
 };
 
 }  // namespace stiffid::estimators
