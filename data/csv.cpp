@@ -297,9 +297,9 @@ void parse_rows(std::string_view text, Chunk& chunk, const std::vector<std::stri
 constexpr std::size_t kParallelParseBytes = 1 << 20;
 constexpr std::size_t kChunksPerThread = 4;
 
-// Reads the header, then the data rows in up to max_threads() chunks of whole lines, in parallel,
-// in two passes: count each chunk's lines and rows, then parse every row
-// straight into its place in the trial's columns. The values do not depend on the thread count;
+// Reads the header, then the data rows in up to kChunksPerThread x max_threads() chunks of whole
+// lines, in parallel, in two passes: count each chunk's lines, then parse every row straight into
+// its place in the trial's columns. The values do not depend on the thread count;
 // when several chunks are bad, the error reported is the first in the file, as a single-threaded
 // parse would report it.
 NumericCsv parse_numeric(std::string_view text, const std::string& source,
