@@ -184,7 +184,7 @@ Eigen::MatrixXd BlockedSignals::convolve(const Eigen::Ref<const Eigen::MatrixXd>
   // samples (zero outside the record); entries m = K-1..n-1 of its circular convolution with the
   // zero-padded kernel are y at u = u0 + m - (K - 1). Output blocks are disjoint, so they run in
   // parallel and each output sample is computed once, the same way at any thread count.
-  const int n = block_fft_length(s, taps - 1);
+  const int n = block_fft_length(s, std::max(taps - 1, 2 * max_lag_));
   const int block = n - taps + 1;
   RealFft kernel_fft(n, inputs * outputs);
   Eigen::MatrixXd padded = Eigen::MatrixXd::Zero(n, inputs * outputs);
