@@ -1,10 +1,10 @@
+// stiffid-full: the stiffid command line with every subcommand (apps/cmd_*.cpp). Users call
+// `stiffid`, which runs frf and irf itself and hands everything else to this program.
 #include <glog/logging.h>
 
-#include <iostream>
-
+#include "apps/cli.hpp"
 #include "apps/commands.hpp"
 #include "data/allocator.hpp"
-#include "data/error.hpp"
 
 int main(int argc, char** argv) {
   stiffid::data::keep_large_blocks_for_reuse();
@@ -13,23 +13,9 @@ int main(int argc, char** argv) {
   FLAGS_logtostderr = true;
   FLAGS_minloglevel = google::GLOG_FATAL;
   google::InitGoogleLogging(argv[0]);
-  CLI::App app{"stiffid: stiffness, damping and inertia of human limbs from experimental trials"};
-  app.set_version_flag("--version", std::string("stiffid ") + stiffid::version());
-  app.require_subcommand(1);
+  return stiffid::apps::run_cli(argc, argv, [](CLI::App& app) {
 #define STIFFID_COMMAND(name) stiffid::apps::add_##name##_command(app);
 #include "commands.inc"
 #undef STIFFID_COMMAND
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  } catch (const stiffid::InputError& e) {
-    std::cerr << "stiffid: error: " << e.what() << '\n';
-    return 2;
-  } catch (const stiffid::apps::NumericalFailure& e) {
-    std::cerr << "stiffid: failed: " << e.what() << '\n';
-    return 1;
-  }
-  return 0;
+  });
 }

@@ -1,0 +1,30 @@
+#include "apps/cli.hpp"
+
+#include <iostream>
+
+#include "apps/commands.hpp"
+#include "data/error.hpp"
+
+namespace stiffid::apps {
+
+int run_cli(int argc, char** argv, const std::function<void(CLI::App&)>& add_commands) {
+  CLI::App app{"stiffid: stiffness, damping and inertia of human limbs from experimental trials"};
+  app.set_version_flag("--version", std::string("stiffid ") + stiffid::version());
+  app.require_subcommand(1);
+  add_commands(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : 2;
+  } catch (const stiffid::InputError& e) {
+    std::cerr << "stiffid: error: " << e.what() << '\n';
+    return 2;
+  } catch (const NumericalFailure& e) {
+    std::cerr << "stiffid: failed: " << e.what() << '\n';
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace stiffid::apps
