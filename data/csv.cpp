@@ -91,18 +91,25 @@ InputError ragged(const std::string& source, int line, size_t cells, size_t colu
                     " cells, expected " + std::to_string(columns) + " as in the header");
 }
 
+// The number at p (text up to `end`) into out: the character after it, or nullptr when none
+// starts there. A leading '+' is accepted, as by strtod. The fast path and the checked path of the
+// trial reader both read their numbers here.
+const char* read_number(const char* p, const char* end, double& out) {
+  if (end - p > 1 && *p == '+' && p[1] != '-') ++p;
+  const auto [ptr, ec] = fast_float::from_chars(p, end, out);
+  return ec == std::errc() ? ptr : nullptr;
+}
+
 // A cell as a finite double, or an InputError naming file:line:column, the column and the text.
 double parse_number(std::string_view text, const std::string& source, int line, int col,
                     const std::string& column) {
   double value = 0.0;
   const char* end = text.data() + text.size();
-  const char* begin = text.data();
-  if (text.size() > 1 && text[0] == '+' && text[1] != '-') ++begin;  // accepted, as by strtod
-  const auto [ptr, ec] = fast_float::from_chars(begin, end, value);
-  if (!text.empty() && ec == std::errc() && ptr == end && std::isfinite(value)) return value;
+  const char* ptr = read_number(text.data(), end, value);
+  if (ptr == end && !text.empty() && std::isfinite(value)) return value;
   // The location is spelled out only on failure: this runs for every cell of a long trial.
   const std::string where = source + ":" + std::to_string(line) + ":" + std::to_string(col + 1);
-  if (text.empty() || ec != std::errc() || ptr != end) {
+  if (text.empty() || ptr != end) {
     throw InputError(where + ": column '" + column + "': expected a number, got '" +
                      std::string(text) + "'");
   }
@@ -196,15 +203,13 @@ bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
 // into out[0..columns), returning the start of the next line (or `end`). nullptr for anything else
 // (a blank or comment line, quotes, a ragged or non-numeric row): the caller then cuts the line
 // out and takes the checked path, which names what is wrong. The row's end is found by the parse
-// itself, so a plain trial is read in one pass. A leading '+' is accepted, as by strtod.
+// itself, so a plain trial is read in one pass.
 const char* parse_plain_line(const char* p, const char* const end, std::size_t columns,
                              double* out) {
   for (std::size_t c = 0; c < columns; ++c) {
     while (p < end && is_blank(*p)) ++p;
-    if (end - p > 1 && *p == '+' && p[1] != '-') ++p;
-    const auto [ptr, ec] = fast_float::from_chars(p, end, out[c]);
-    if (ec != std::errc() || !std::isfinite(out[c])) return nullptr;
-    p = ptr;
+    p = read_number(p, end, out[c]);
+    if (p == nullptr || !std::isfinite(out[c])) return nullptr;
     while (p < end && is_blank(*p)) ++p;
     if (c + 1 < columns) {
       if (p == end || *p != ',') return nullptr;
@@ -335,7 +340,8 @@ NumericCsv parse_numeric(std::string_view text, const std::string& source,
   std::vector<Chunk> chunks(1);
   chunks[0].begin = pos;
   for (std::size_t k = 1; k < wanted; ++k) {
-    const std::size_t eol = text.find('\n', std::max(pos + bytes * k / wanted, chunks.back().begin));
+    const std::size_t from = std::max(pos + bytes * k / wanted, chunks.back().begin);
+    const std::size_t eol = text.find('\n', from);
     if (eol == std::string_view::npos) break;
     chunks.back().end = eol + 1;
     chunks.emplace_back().begin = eol + 1;
@@ -375,7 +381,9 @@ NumericCsv parse_numeric(std::string_view text, const std::string& source,
     for (const Chunk& chunk : chunks) {
       const int from = chunk.first_row;
       packed.channels.middleRows(to, chunk.rows) = out.channels.middleRows(from, chunk.rows);
-      if (out.time_col >= 0) packed.time.segment(to, chunk.rows) = out.time.segment(from, chunk.rows);
+      if (out.time_col >= 0) {
+        packed.time.segment(to, chunk.rows) = out.time.segment(from, chunk.rows);
+      }
       std::copy_n(out.lines.begin() + from, chunk.rows, packed.lines.begin() + to);
       to += chunk.rows;
     }

@@ -47,7 +47,8 @@ struct TrialCsvOptions {
 /// header cell `name[unit]` (or `name (unit)`) sets the channel's unit. Every cell must be a finite
 /// number; time must increase uniformly within the tolerance. Errors name source:line:column.
 /// Cells are converted in place (no per-cell strings), straight into the trial's columns, on up to
-/// max_threads() threads (data/parallel.hpp) for texts over 1 MiB; results do not depend on the thread count.
+/// max_threads() threads (data/parallel.hpp) for texts over 1 MiB; results do not depend on the
+/// thread count.
 Trial parse_trial_csv(std::string_view text, const std::string& source,
                       const TrialCsvOptions& options = {});
 /// Reads a file (memory-mapped) and parses it with parse_trial_csv; a missing file is an

@@ -44,4 +44,17 @@ void parallel_for_index(std::size_t count, Work&& work) {
   }
 }
 
+/// Splits the indices 0..count-1 into `groups` (>= 1) fixed runs of consecutive indices, run g
+/// being [count g / groups, count (g + 1) / groups), and calls work(g, begin, end) for every run
+/// in parallel (parallel_for_index). The runs depend only on count and groups, never on the
+/// thread count.
+template <typename Work>
+void parallel_for_groups(int count, int groups, Work&& work) {
+  parallel_for_index(static_cast<std::size_t>(groups), [&](std::size_t g) {
+    const int begin = static_cast<int>(static_cast<long>(count) * static_cast<long>(g) / groups);
+    const int end = static_cast<int>(static_cast<long>(count) * static_cast<long>(g + 1) / groups);
+    work(g, begin, end);
+  });
+}
+
 }  // namespace stiffid::data

@@ -129,15 +129,13 @@ Eigen::MatrixXd BlockedSignals::correlate(const std::vector<ChannelPair>& pairs)
   const int blocks = (s + block - 1) / block;
   const int groups = std::min(blocks, kBlockGroups);
   std::vector<Eigen::MatrixXcd> group_sums(groups);
-  data::parallel_for_index(groups, [&](std::size_t g) {
+  data::parallel_for_groups(blocks, groups, [&](std::size_t g, int begin, int end) {
     RealFft first_fft(n, static_cast<int>(firsts.size()));
     RealFft second_fft(n, static_cast<int>(seconds.size()));
     Eigen::MatrixXd p_block(n, firsts.size());
     Eigen::MatrixXd q_block(n, seconds.size());
     Eigen::MatrixXcd& sums = group_sums[g];
     sums = Eigen::MatrixXcd::Zero(first_fft.bins(), count);
-    const int begin = static_cast<int>(static_cast<long>(blocks) * g / groups);
-    const int end = static_cast<int>(static_cast<long>(blocks) * (g + 1) / groups);
     for (int b = begin; b < end; ++b) {
       const int start = b * block;
       const int length = std::min(block, s - start);
@@ -193,13 +191,11 @@ Eigen::MatrixXd BlockedSignals::convolve(const Eigen::Ref<const Eigen::MatrixXd>
   Eigen::MatrixXd y(s, outputs);
   const int blocks = (s + block - 1) / block;
   const int groups = std::min(blocks, kBlockGroups);
-  data::parallel_for_index(groups, [&](std::size_t g) {
+  data::parallel_for_groups(blocks, groups, [&](std::size_t, int begin, int end) {
     RealFft input_fft(n, inputs);
     RealFft output_fft(n, outputs);
     Eigen::MatrixXd x_window(n, inputs);
     Eigen::MatrixXcd products(input_fft.bins(), outputs);
-    const int begin = static_cast<int>(static_cast<long>(blocks) * g / groups);
-    const int end = static_cast<int>(static_cast<long>(blocks) * (g + 1) / groups);
     for (int b = begin; b < end; ++b) {
       const int t0 = b * block;                 // first output sample of the block
       const int length = std::min(block, s - t0);

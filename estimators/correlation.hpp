@@ -74,9 +74,9 @@ class BlockedSignals {
   /// outside the record: the discrete convolution of eq 1 with kernels supported on lags
   /// first_lag..first_lag+K-1 samples, by overlap-save of blocks. The blocks use the FFT length
   /// of correlate() (span 2L) whenever the kernel is no longer than that (an IRF's always is):
-  /// one FFT size per object, so the process plans it once (FFTW's first plan of a size costs a
-  /// few ms, about what the FFTs of a 10-minute record do). Throws InputError when the kernel
-  /// columns do not match `outputs` and the channels.
+  /// one FFT size per object, so the process plans it once (FFTW's first plan of a size costs
+  /// 3-8 ms on the benchmark machine). Throws InputError when the kernel columns do not match
+  /// `outputs` and the channels.
   Eigen::MatrixXd convolve(const Eigen::Ref<const Eigen::MatrixXd>& kernels, int first_lag,
                            int outputs) const;
 

@@ -192,9 +192,7 @@ FrfResult estimate_frf(const CrossSpectra& spectra, int inputs, const FrfOptions
     }
   };
   const int groups = std::min(bins, kBinGroups);
-  data::parallel_for_index(groups, [&](std::size_t group) {
-    const int begin = static_cast<int>(static_cast<long>(bins) * group / groups);
-    const int end = static_cast<int>(static_cast<long>(bins) * (group + 1) / groups);
+  data::parallel_for_groups(bins, groups, [&](std::size_t, int begin, int end) {
     for (int f = begin; f < end; ++f) one_bin(f);
   });
   int coupled_bins = 0;

@@ -365,7 +365,9 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
     }
   }
   Eigen::VectorXd output_power(n_out);  // variance of each output
-  for (int j = 0; j < n_out; ++j) output_power(j) = spectra.centred(n_in + j).squaredNorm() / samples;
+  for (int j = 0; j < n_out; ++j) {
+    output_power(j) = spectra.centred(n_in + j).squaredNorm() / samples;
+  }
   for (int j = 0; j < n_out; ++j) {
     if (!(output_power(j) > 0.0)) {
       result.status = Status::failure("IRF: output " + std::to_string(j) +
@@ -375,7 +377,8 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
   }
 
   Solution solution =
-      toeplitz_solve ? solve_block_toeplitz(phi_all.leftCols(input_pairs), n_in, lags, max_lag, phi_xy)
+      toeplitz_solve
+          ? solve_block_toeplitz(phi_all.leftCols(input_pairs), n_in, lags, max_lag, phi_xy)
       : options.inverse == IrfInverse::full
           ? solve_full(psi, phi_xy)
           : solve_pseudo_inverse(psi, phi_xy, output_power, samples, options);

@@ -148,13 +148,12 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
   // streaming a whole-spectrum accumulator per pair through memory for every segment; each sum
   // still runs over the segments in order.
   std::vector<Eigen::MatrixXcd> acc(groups);
-  data::parallel_for_index(groups, [&](std::size_t g) {
+  data::parallel_for_groups(segments, groups, [&](std::size_t g, int begin, int end) {
     Eigen::MatrixXcd& sum = acc[g];
     sum = Eigen::MatrixXcd::Zero(pairs, bins);
-    const int begin = static_cast<int>(static_cast<long>(segments) * g / groups);
-    const int end = static_cast<int>(static_cast<long>(segments) * (g + 1) / groups);
     RealFft fft(nfft, chunk * channels);
-    Eigen::MatrixXd batch = Eigen::MatrixXd::Zero(nfft, static_cast<Eigen::Index>(chunk) * channels);
+    Eigen::MatrixXd batch =
+        Eigen::MatrixXd::Zero(nfft, static_cast<Eigen::Index>(chunk) * channels);
     for (int first = begin; first < end; first += chunk) {
       const int count = std::min(chunk, end - first);
       for (int c = 0; c < channels; ++c) {
