@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "data/error.hpp"
+#include "data/parallel.hpp"
 #include "estimators/fft.hpp"
 
 namespace stiffid::estimators {
@@ -106,35 +107,42 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
   const int chunk_frames = std::min(kChunkFrames, frames);
   std::vector<Eigen::MatrixXcd> band(per_frame, Eigen::MatrixXcd(bins, frames));
   r.sampled = std::make_shared<const SampledWindow>(options.window, half, dt);
-  RealFft fft(n_fft, per_frame * chunk_frames);
-  Eigen::MatrixXd chunk(n_fft, per_frame * chunk_frames);
-  for (int first = 0; first < frames; first += chunk_frames) {
-    const int count = std::min(chunk_frames, frames - first);
-    chunk.setZero();
-    for (int f = 0; f < count; ++f) {
-      const int m = first + f;
-      const SampledWindow::Cut cut = r.sampled->cut(r.offset_lo(m), r.offset_hi(m));
-      const Eigen::VectorXd* windows[3] = {&cut.h, &cut.th, &cut.dh};
-      for (int w = 0; w < 3; ++w) {
-        for (int p = 0; p < parts; ++p) {
-          const Eigen::MatrixXd& x = p == 0 ? signal.real : signal.imag;
-          for (int ch = 0; ch < channels; ++ch) {
-            double* col = chunk.col(f * per_frame + (w * parts + p) * channels + ch).data();
-            for (int i = 0; i < cut.h.size(); ++i) {
-              const int n = cut.lo + i;
-              col[(n + n_fft) % n_fft] = (*windows[w])(i) * x(r.centre(m) + n, ch);
+  // Two fixed groups of chunks (one per core of a small machine), each with its own plan and
+  // buffers; every frame's transforms are the same whichever group makes them.
+  const int chunks = (frames + chunk_frames - 1) / chunk_frames;
+  data::parallel_for_groups(chunks, std::min(2, chunks), [&](std::size_t, int chunk_begin,
+                                                             int chunk_end) {
+    RealFft fft(n_fft, per_frame * chunk_frames);
+    Eigen::MatrixXd chunk(n_fft, per_frame * chunk_frames);
+    for (int index = chunk_begin; index < chunk_end; ++index) {
+      const int first = index * chunk_frames;
+      const int count = std::min(chunk_frames, frames - first);
+      chunk.setZero();
+      for (int f = 0; f < count; ++f) {
+        const int m = first + f;
+        const SampledWindow::Cut cut = r.sampled->cut(r.offset_lo(m), r.offset_hi(m));
+        const Eigen::VectorXd* windows[3] = {&cut.h, &cut.th, &cut.dh};
+        for (int w = 0; w < 3; ++w) {
+          for (int p = 0; p < parts; ++p) {
+            const Eigen::MatrixXd& x = p == 0 ? signal.real : signal.imag;
+            for (int ch = 0; ch < channels; ++ch) {
+              double* col = chunk.col(f * per_frame + (w * parts + p) * channels + ch).data();
+              for (int i = 0; i < cut.h.size(); ++i) {
+                const int n = cut.lo + i;
+                col[(n + n_fft) % n_fft] = (*windows[w])(i) * x(r.centre(m) + n, ch);
+              }
             }
           }
         }
       }
-    }
-    const Eigen::MatrixXcd spectra = fft.forward(chunk);
-    for (int f = 0; f < count; ++f) {
-      for (int q = 0; q < per_frame; ++q) {
-        band[q].col(first + f) = spectra.col(f * per_frame + q).segment(k_lo, bins);
+      const Eigen::MatrixXcd spectra = fft.forward(chunk);
+      for (int f = 0; f < count; ++f) {
+        for (int q = 0; q < per_frame; ++q) {
+          band[q].col(first + f) = spectra.col(f * per_frame + q).segment(k_lo, bins);
+        }
       }
     }
-  }
+  });
 
   auto block = [&](int w, int ch) {
     Eigen::MatrixXcd out = std::move(band[(w * parts + 0) * channels + ch]);

@@ -6,6 +6,9 @@
 #include <limits>
 #include <string>
 
+#include "data/error.hpp"
+#include "data/parallel.hpp"
+
 namespace stiffid::estimators {
 namespace {
 
@@ -343,12 +346,21 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
       improved = trial_cost <= cost;
     }
     if (!improved) break;  // at the minimum to round-off
+    // The accepted step, relative to the parameters: Gauss-Newton converges quadratically on
+    // these nearly zero-residual fits, so after a step of 1e-9 the next would be below round-off.
+    double relative_step = 0.0;
+    for (int j = 0; j < n; ++j) {
+      relative_step =
+          std::max(relative_step, std::abs(trial.lambda[j] - fit.lambda[j]) / std::abs(fit.lambda[j]));
+      const double size = fit.coef.row(j).cwiseAbs().maxCoeff();
+      relative_step = std::max(relative_step, (trial.coef.row(j) - fit.coef.row(j)).cwiseAbs().maxCoeff() / size);
+    }
     fit = trial;
     std::swap(residual, trial_residual);
     std::swap(jac, trial_jac);
     const double previous = cost;
     cost = trial_cost;
-    if (previous - cost <= 1e-14 * previous) break;
+    if (previous - cost <= 1e-14 * previous || relative_step <= 1e-9) break;
   }
   return std::isfinite(cost);
 }
@@ -412,11 +424,16 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
     return fit;
   };
   // Start mid-record (full windows, best conditioned), then follow the modes both ways, each frame
-  // starting from its neighbour's solution.
+  // starting from its neighbour's solution: two independent chains, run in parallel.
   const int mid = frames / 2;
   fits[mid] = fit_frame(mid, nullptr, 0.0);
-  for (int m = mid + 1; m < frames; ++m) fits[m] = fit_frame(m, &fits[m - 1], sg.hop_s);
-  for (int m = mid - 1; m >= 0; --m) fits[m] = fit_frame(m, &fits[m + 1], -sg.hop_s);
+  data::parallel_for_index(2, [&](std::size_t chain) {
+    if (chain == 0) {
+      for (int m = mid + 1; m < frames; ++m) fits[m] = fit_frame(m, &fits[m - 1], sg.hop_s);
+    } else {
+      for (int m = mid - 1; m >= 0; --m) fits[m] = fit_frame(m, &fits[m + 1], -sg.hop_s);
+    }
+  });
 
   int failed_frames = 0;
   const double nan = std::numeric_limits<double>::quiet_NaN();

@@ -67,6 +67,7 @@ class SampledWindow {
     Eigen::VectorXd h;   ///< window, dimensionless
     Eigen::VectorXd th;  ///< time-weighted window n dt h[n], s
     Eigen::VectorXd dh;  ///< derivative window dh/du with edge steps, 1/s
+    Eigen::VectorXd tdh; ///< time-weighted derivative window n dt dh[n], dimensionless
   };
   Cut cut(int lo, int hi) const;
 
