@@ -1,0 +1,726 @@
+#!/usr/bin/env python3
+"""numpy/scipy peer of `stiffid tfa` with its default method, `modal` (docs/tfa_modal.md): the
+same stages with the same default options, for the issue-7 benchmark (bench/bench_modal.sh).
+
+Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it calls:
+  - joint deviations from the posture, the mean over 0.2 s before the onset, 1.1 s kept before
+    the onset for the noise (tfa_deviation.cpp);
+  - zero-phase Kaiser windowed-sinc FIR decimation to 200 Hz (half-length 5 D, beta 9, cut-off
+    0.8 of the output Nyquist frequency, renormalised at the record ends; decimate.cpp);
+  - noise covariance of the filtered samples 1 s before the onset, topped up to the 40 dB floor,
+    Cholesky whitening (damped_modes.cpp, prepare);
+  - multichannel matrix pencil on the fitted record, sliding 0.5 s pencils and the ridge spline
+    through the kept estimates as the start (matrix_pencil.cpp, start_tracks);
+  - uniform cubic B-spline tracks omega_j, alpha_j (knots 0.1 s) with closed-form running
+    integrals (cubic_bspline.cpp);
+  - variable projection with Kaufman's Jacobian, minimized by Levenberg-Marquardt, along the
+    roughness continuation 0.003 .. 3 with the BIC rule; stage 2 with slowly varying mode shapes
+    (knots 0.5 s, orthogonal to the stage-1 shapes, first-difference penalty whose weight GCV
+    chooses over 1e-3 .. 1e6); posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including
+    the mode-to-data power and separation checks (damped_modes.cpp);
+  - eqs 45-46 and the state-space mapping to K(t), C(t), P(t) (modal_parameters.cpp), the
+    per-time modal quantities and eq 49's normalized force (tfa.cpp, normalized_force.cpp);
+  - JSON with the keys of `stiffid tfa` (apps/cmd_tfa.cpp), plus "iterations": the residual
+    evaluations of all Levenberg-Marquardt stages.
+
+Deliberate differences from the C++ code:
+  - the Levenberg-Marquardt is MINPACK's (scipy.optimize.least_squares, method "lm", Jacobian
+    column scaling as Ceres's Jacobi scaling, ftol = xtol = 1e-10, gtol = 1e-12, at most
+    max_iterations + 1 evaluations, as Ceres counts one iteration per trial step), not Ceres's:
+    the two take different steps and stop by slightly different rules, so the optimum agrees to
+    the tolerance, not to round-off. A trial point the model cannot evaluate (overflow) gets huge
+    residuals, so that MINPACK rejects it as Ceres does;
+  - the matrix pencil takes V from the SVD of the Hankel matrix's triangular QR factor (the same
+    V; numpy's SVD would also form U, which Eigen's BDCSVD with ComputeThinV skips);
+  - the Kaufman projection uses the explicit thin Q of a pivoted QR (scipy.linalg.qr) instead of
+    applying the Householder reflectors; pseudo-inverses are SVD-based (numpy lstsq / pinv) where
+    Eigen uses a complete orthogonal decomposition: the same values for full-rank matrices;
+  - K(t) positive definite is tested by its eigenvalues instead of a Cholesky factorization.
+
+    python3 peer_modal.py TRIAL.csv --onset 2.5 [--angles th1,th2] [-o OUT.json]
+    python3 peer_modal.py --make-trial TRIAL.csv   # the bench trial (peer_tfa.make_trial)
+"""
+import argparse
+import json
+import math
+
+import numpy as np
+import scipy.linalg
+from numpy.lib.stride_tricks import sliding_window_view
+from scipy.optimize import least_squares
+from scipy.special import i0
+
+from peer_tfa import ARM, inertia, make_trial
+
+# Defaults of DampedModesOptions / DeviationOptions (estimators/damped_modes.hpp, tfa_deviation.hpp).
+OPTIONS = dict(decimate_hz=200.0, skip_s=0.025, noise_window_s=1.0, knot_spacing_s=0.1,
+               shape_knot_spacing_s=0.5, shape_weight=-1.0, track_roughness=-1.0,
+               init_window_s=0.5, anr_threshold_db=0.0, max_frequency_sd_hz=0.1,
+               max_mode_to_data_db=20.0, min_mode_separation=0.01, max_iterations=100)
+PRE_ONSET_S, PULSE_S = 0.2, 0.02
+ROUGHNESS_GRID = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
+
+
+def lround(x):
+    """C's lround: halves away from zero."""
+    return int(math.floor(abs(x) + 0.5)) * (1 if x >= 0 else -1)
+
+
+def ceil_div(i, d):
+    return -((-i) // d)
+
+
+# ---- decimate.cpp -------------------------------------------------------------------------------
+def decimate(x, d, half_per_factor=5, cutoff=0.8, beta=9.0):
+    """Zero-phase Kaiser FIR low-pass, every d-th sample; gain renormalised where the record cuts
+    the filter. x (S x C) -> (ceil(S / d) x C)."""
+    if d == 1:
+        return x.copy()
+    half = half_per_factor * d
+    n = np.arange(-half, half + 1)
+    taps = np.sinc(2.0 * cutoff * 0.5 / d * n) * i0(beta * np.sqrt(1.0 - (n / half) ** 2)) / i0(beta)
+    taps /= taps.sum()
+    s = x.shape[0]
+    padded = np.pad(x, ((half, half), (0, 0)))
+    windows = sliding_window_view(padded, 2 * half + 1, axis=0)[::d]  # (out, C, 2 half + 1)
+    gain = sliding_window_view(np.pad(np.ones(s), half), 2 * half + 1)[::d] @ taps
+    return (windows @ taps) / gain[:, None]
+
+
+# ---- cubic_bspline.cpp --------------------------------------------------------------------------
+class Bspline:
+    """Uniform cubic B-spline basis on [0, length_s], spans + 3 functions."""
+    AREA = np.array([1.0, 11.0, 11.0, 1.0]) / 24.0
+
+    def __init__(self, length_s, target_s):
+        self.spans = max(1, lround(length_s / target_s))
+        self.h = length_s / self.spans
+        self.size = self.spans + 3
+
+    def _locate(self, t):
+        x = t / self.h
+        span = np.clip(np.floor(x).astype(int), 0, self.spans - 1)
+        return span, x - span
+
+    def _scatter(self, span, pieces):
+        b = np.zeros((span.size, self.size))
+        rows = np.arange(span.size)
+        for r in range(4):
+            b[rows, span + r] = pieces[r]
+        return b
+
+    def values(self, t):
+        s, u = self._locate(t)
+        return self._scatter(s, [(1 - u) ** 3 / 6, (3 * u ** 3 - 6 * u ** 2 + 4) / 6,
+                                 (-3 * u ** 3 + 3 * u ** 2 + 3 * u + 1) / 6, u ** 3 / 6])
+
+    def first_derivatives(self, t):
+        s, u = self._locate(t)
+        return self._scatter(s, [-(1 - u) ** 2 / 2, (3 * u ** 2 - 4 * u) / 2,
+                                 (-3 * u ** 2 + 2 * u + 1) / 2, u ** 2 / 2]) / self.h
+
+    def integrals(self, t):
+        s, u = self._locate(t)
+        whole = np.zeros((self.spans + 1, self.size))  # areas of the pieces in spans before s
+        for span in range(self.spans):
+            whole[span + 1] = whole[span]
+            whole[span + 1, span:span + 4] += self.AREA
+        u2, u3, u4 = u * u, u ** 3, u ** 4
+        part = self._scatter(s, [(1 - (1 - u) ** 4) / 24, (0.75 * u4 - 2 * u3 + 4 * u) / 6,
+                                 (-0.75 * u4 + u3 + 1.5 * u2 + u) / 6, u4 / 24])
+        return (whole[s] + part) * self.h
+
+    def second_differences(self):
+        d = np.zeros((self.size - 2, self.size))
+        for m in range(self.size - 2):
+            d[m, m:m + 3] = (1.0, -2.0, 1.0)
+        return d
+
+    def first_differences(self):
+        d = np.zeros((self.size - 1, self.size))
+        for m in range(self.size - 1):
+            d[m, m:m + 2] = (-1.0, 1.0)
+        return d
+
+
+# ---- matrix_pencil.cpp --------------------------------------------------------------------------
+def matrix_pencil(y, rate_hz, modes, fraction=1.0 / 3.0, max_pencil=160):
+    """Multichannel matrix pencil (Hua & Sarkar 1990). Returns (alpha, omega, amplitude (n x C))
+    or None when it finds fewer than n oscillatory poles."""
+    s, c = y.shape
+    order = 2 * modes
+    pencil = min(max(int(fraction * s), order + 1), max(order + 1, max_pencil))
+    rows = s - pencil
+    hankel = sliding_window_view(y, pencil + 1, axis=0)[:rows]  # (rows, C, L + 1)
+    hankel = hankel.transpose(1, 0, 2).reshape(c * rows, pencil + 1)
+    # V of the Hankel matrix from the SVD of its triangular factor: the same V without forming U
+    # (Eigen's BDCSVD computes V alone).
+    r = scipy.linalg.qr(hankel, mode="r", check_finite=False)[0][:pencil + 1]
+    _, sv, vt = scipy.linalg.svd(r, check_finite=False)
+    if not sv[0] > 0:
+        return None
+    v = vt[:order].T
+    z_matrix = np.linalg.lstsq(v[:pencil], v[1:], rcond=None)[0]
+    z = np.linalg.eigvals(z_matrix)
+    z = z[np.abs(z) != 0]
+    lam = np.log(z.astype(complex)) * rate_hz
+    lam = lam[lam.imag > 1e-9 * rate_hz]
+    if lam.size < modes:
+        return None
+    lam = lam[np.argsort(lam.imag, kind="stable")][:modes]
+    e = np.exp(np.outer(np.arange(s) / rate_hz, lam))
+    basis = np.empty((s, 2 * modes))
+    basis[:, 0::2], basis[:, 1::2] = e.real, -e.imag
+    coef = np.linalg.lstsq(basis, y, rcond=None)[0]
+    return lam.real, lam.imag, coef[0::2] + 1j * coef[1::2]
+
+
+# ---- damped_modes.cpp ---------------------------------------------------------------------------
+def prepare(x, rate_hz, start_s, onset_s, o):
+    d = max(1, lround(rate_hz / o["decimate_hz"])) if o["decimate_hz"] > 0 else 1
+    h = 5 * d if d > 1 else 0
+    s, c = x.shape
+    onset = math.ceil((onset_s - start_s) * rate_hz - 1e-9)
+    noise_first = ceil_div(max(h, onset - lround(o["noise_window_s"] * rate_hz) + h), d)
+    noise_last = (onset - 1 - h) // d if onset - 1 - h >= 0 else -1
+    if noise_last - noise_first + 1 < 8 * c or onset < lround(o["noise_window_s"] * rate_hz):
+        raise SystemExit("modal fit: the record needs noise_window_s of samples before the onset")
+    first = ceil_div(onset + math.ceil(o["skip_s"] * rate_hz) + h, d)
+    last = (s - 1 - h) // d
+    n = max(0, last - first + 1)
+    rate = rate_hz / d
+    if n < 2 or (n - 1) / rate < 0.5:
+        raise SystemExit("modal fit: less than 0.5 s of free response after onset + skip_s")
+    dec = decimate(x, d)
+    p = dict(rate_hz=rate, d=d)
+    p["y"] = dec[first:last + 1]
+    p["t_s"] = start_s + np.arange(first, last + 1) * (d / rate_hz)
+    p["tau_s"] = p["t_s"] - p["t_s"][0]
+    noise = dec[noise_first:noise_last + 1]
+    noise = noise - noise.mean(axis=0)
+    p["noise_cov"] = noise.T @ noise / (noise.shape[0] - 1)
+    power = np.sum(p["y"] ** 2) / p["y"].size
+    floor = max(1e-6 * power, 1e-4 * power - np.trace(p["noise_cov"]) / c) + 1e-300
+    p["L"] = np.linalg.cholesky(p["noise_cov"] + floor * np.eye(c))
+    p["W"] = scipy.linalg.solve_triangular(p["L"], np.eye(c), lower=True)
+    p["yw"] = (p["y"] @ p["W"].T).ravel()  # row i * C + k
+    return p
+
+
+class VpProblem:
+    """Variable projection for fixed linear terms (mode, whitened direction [C], time function),
+    penalized pairs of linear terms (weight) and roughness prior rows (R x P)."""
+
+    def __init__(self, p, modes, ig, functions, terms, pairs, weight, prior):
+        self.p, self.modes, self.ig, self.prior = p, modes, ig, prior
+        self.n, self.c = p["y"].shape
+        self.m = ig.shape[1]
+        self.igr = np.repeat(ig, self.c, axis=0)  # (N C x M)
+        self.t_modes = np.array([t[0] for t in terms])
+        self.t_dirs = np.array([t[1] for t in terms]).T  # (C x T)
+        self.t_funcs = functions[:, [t[2] for t in terms]]  # (N x T)
+        self.terms, self.functions = terms, functions
+        self.mode_onehot = (self.t_modes[:, None] == np.arange(modes)[None, :]).astype(float)
+        self.rd = self.n * self.c
+        self.nl = 2 * len(terms)
+        self.np = 2 * modes * self.m
+        pen = np.zeros((2 * len(pairs), self.nl))
+        for q, (a, b) in enumerate(pairs):
+            for part in range(2):
+                pen[2 * q + part, 2 * a + part] = -1.0
+                pen[2 * q + part, 2 * b + part] = 1.0
+        self.penalty = pen
+        self.sqrt_weight = math.sqrt(weight)
+        self.rp = pen.shape[0]
+        self.b = np.concatenate([p["yw"], np.zeros(self.rp)])
+        self.residuals = self.rd + self.rp + prior.shape[0]
+        self._key = None
+
+    def function_columns(self, mode):
+        """Time-function columns of mode's terms."""
+        return [t[2] for t in self.terms if t[0] == mode]
+
+    def oscillations(self, theta):
+        th = theta.reshape(self.modes, 2, self.m)
+        re = self.ig @ th[:, 0, :].T
+        im = self.ig @ th[:, 1, :].T
+        if not (np.isfinite(re).all() and np.isfinite(im).all()) or np.abs(re).max() > 600.0:
+            return None
+        return np.exp(re + 1j * im)  # (N x modes)
+
+    def design(self, e):
+        v = self.t_funcs * e[:, self.t_modes]  # (N x T)
+        w = (v[:, None, :] * self.t_dirs[None, :, :]).reshape(self.rd, -1)
+        a = np.empty((self.rd, self.nl))
+        a[:, 0::2], a[:, 1::2] = w.real, -w.imag
+        return a, self.penalty
+
+    def evaluate(self, theta):
+        """Caches (residual, beta, Q, rank, e) at theta; False when the model overflows."""
+        key = theta.tobytes()
+        if key == self._key:
+            return self._ok
+        self._key = key
+        e = self.oscillations(theta)
+        self._ok = e is not None
+        if not self._ok:
+            return False
+        a_data, a_pen = self.design(e)
+        a = np.vstack([a_data, self.sqrt_weight * a_pen])
+        q, r, piv = scipy.linalg.qr(a, mode="economic", pivoting=True, check_finite=False)
+        diag = np.abs(np.diag(r))
+        rank = int(np.sum(diag > np.finfo(float).eps * min(a.shape) * diag[0]))
+        z = scipy.linalg.solve_triangular(r[:rank, :rank], q[:, :rank].T @ self.b)
+        beta = np.zeros(self.nl)
+        beta[piv[:rank]] = z
+        if not np.isfinite(beta).all():
+            self._ok = False
+            return False
+        self.e, self.beta, self.q = e, beta, q[:, :rank]
+        self.resid = np.concatenate([self.b - a @ beta, self.prior @ theta])
+        return True
+
+    def residual(self, theta):
+        if not self.evaluate(theta):
+            return np.full(self.residuals, 1e100)
+        return self.resid
+
+    def jacobian(self, theta):
+        """Kaufman: [-(I - Q Q^T) D; prior], D = d(A beta)/d theta at fixed beta."""
+        if not self.evaluate(theta):
+            return np.zeros((self.residuals, self.np))
+        coef = self.beta[0::2] + 1j * self.beta[1::2]
+        v = self.t_funcs * self.e[:, self.t_modes] * coef  # (N x T)
+        y = (v[:, None, :] * self.t_dirs[None, :, :]) @ self.mode_onehot  # (N, C, modes)
+        y = y.reshape(self.rd, self.modes)
+        d = np.zeros((self.rd + self.rp, self.np))
+        blocks = d[:self.rd].reshape(self.rd, self.modes, 2, self.m)
+        blocks[:, :, 0, :] = self.igr[:, None, :] * y.real[:, :, None]
+        blocks[:, :, 1, :] = -self.igr[:, None, :] * y.imag[:, :, None]
+        d -= self.q @ (self.q.T @ d)
+        return np.vstack([-d, self.prior])
+
+
+def solve(problem, theta, max_iterations):
+    """Levenberg-Marquardt (MINPACK) on the projected residual. (theta, usable, converged, nfev)."""
+    if not problem.evaluate(theta):
+        return theta, False, False, 0
+    fit = least_squares(problem.residual, theta, jac=problem.jacobian, method="lm",
+                        x_scale="jac", ftol=1e-10, xtol=1e-10, gtol=1e-12,
+                        max_nfev=max_iterations + 1)
+    usable = fit.status >= 0 and problem.evaluate(fit.x)
+    return fit.x, usable, fit.status > 0, fit.nfev
+
+
+def fit_size(problem, theta, with_dof):
+    if not problem.evaluate(theta):
+        return None
+    rss = float(problem.resid[:problem.rd] @ problem.resid[:problem.rd])
+    dof = 0.0
+    if with_dof:
+        j = problem.jacobian(theta)
+        jd = j[:problem.rd]
+        dof = np.trace(scipy.linalg.solve(j.T @ j, jd.T @ jd, assume_a="sym")) + problem.nl
+    return rss, dof
+
+
+def prior_rows(track, modes, roughness):
+    return np.kron(np.eye(2 * modes), track.second_differences() / roughness)
+
+
+def start_tracks(p, track, global_start, o, modes):
+    y, rate = p["y"], p["rate_hz"]
+    n = y.shape[0]
+    window = min(n, max(4 * modes + 2, lround(o["init_window_s"] * rate)))
+    hop = max(1, lround(track.h * rate))
+    half_s = 0.5 * (window - 1) / rate
+    last_omega = global_start[1].copy()
+    kept = [[] for _ in range(modes)]
+    for first in range(0, n - window + 1, hop):
+        w = matrix_pencil(y[first:first + window], rate, modes)
+        if w is None:
+            continue
+        alpha, omega, amp = w
+        for j in range(modes):
+            white = p["W"] @ amp[j]
+            anr = 0.5 * np.vdot(white, white).real * math.exp(2.0 * alpha[j] * half_s)
+            ratio = omega[j] / last_omega[j]
+            if anr < 4.0 or ratio < 0.7 or ratio > 1.4 or abs(alpha[j]) > omega[j]:
+                continue
+            kept[j].append((p["tau_s"][first] + half_s, alpha[j], omega[j]))
+            last_omega[j] = omega[j]
+    m = track.size
+    theta = np.empty(2 * modes * m)
+    ridge = 1e-2 * track.first_differences()
+    for j in range(modes):
+        if not kept[j]:
+            theta[2 * j * m:(2 * j + 1) * m] = global_start[0][j]
+            theta[(2 * j + 1) * m:(2 * j + 2) * m] = global_start[1][j]
+            continue
+        centre, alpha, omega = (np.array(v) for v in zip(*kept[j]))
+        a = np.vstack([track.values(centre), ridge])
+        rhs = np.zeros((a.shape[0], 2))
+        rhs[:centre.size, 0], rhs[:centre.size, 1] = alpha, omega
+        coef = np.linalg.lstsq(a, rhs, rcond=None)[0]
+        theta[2 * j * m:(2 * j + 1) * m], theta[(2 * j + 1) * m:(2 * j + 2) * m] = coef.T
+    return theta
+
+
+def choose_shape_weight(problem, theta, p):
+    """GCV of the shape penalty at fixed tracks over 1e-3 .. 1e6 (half decades)."""
+    e = problem.oscillations(theta)
+    if e is None:
+        return 1.0
+    a, r = problem.design(e)
+    ata, rtr, atb = a.T @ a, r.T @ r, a.T @ p["yw"]
+    rows = a.shape[0]
+    best, best_score = 1.0, np.inf
+    for k in range(-6, 13):
+        lam = 10.0 ** (0.5 * k)
+        sol = np.linalg.lstsq(ata + lam * rtr, np.column_stack([atb, ata]), rcond=None)[0]
+        beta, trace = sol[:, 0], np.trace(sol[:, 1:])
+        resid = p["yw"] - a @ beta
+        score = rows * (resid @ resid) / (rows - trace) ** 2
+        if score < best_score:
+            best_score, best = score, lam
+    return best
+
+
+def complete_basis(u):
+    q = np.linalg.qr(u[:, None], mode="complete")[0]
+    q[:, 0] = u / np.linalg.norm(u)
+    return q
+
+
+def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
+    p = prepare(x, rate_hz, start_s, onset_s, o)
+    n, c = p["y"].shape
+    res = dict(t_s=p["t_s"], rate_hz=p["rate_hz"], noise_cov=p["noise_cov"], data=p["y"],
+               shape_weight=0.0, track_roughness=0.0, iterations=0)
+    start = matrix_pencil(p["y"], p["rate_hz"], modes)
+    if start is None:
+        raise SystemExit("modal fit: no start")
+    track = Bspline(p["tau_s"][-1], o["knot_spacing_s"])
+    m = track.size
+    ig = track.integrals(p["tau_s"])
+    theta = start_tracks(p, track, start, o, modes)
+
+    terms = [(j, np.eye(c)[k].astype(complex), 0) for j in range(modes) for k in range(c)]
+    constant = np.ones((n, 1))
+    grid = ROUGHNESS_GRID if o["track_roughness"] < 0 else (o["track_roughness"],)
+    stage1, converged = None, False
+    best_theta, previous_rss, previous_dof = theta, np.inf, 0.0
+    for roughness in grid:
+        problem = VpProblem(p, modes, ig, constant, terms, [], 0.0, prior_rows(track, modes, roughness))
+        candidate, usable, conv, nfev = solve(problem, theta, o["max_iterations"])
+        res["iterations"] += nfev
+        if not usable:
+            break
+        size = fit_size(problem, candidate, len(grid) > 1)
+        if size is None:
+            break
+        rss, dof = size
+        rows = problem.rd
+        if stage1 is not None:
+            variance = max(1.0, rss / max(1.0, rows - dof))
+            if previous_rss - rss <= math.log(rows) * (dof - previous_dof) * variance:
+                break
+        stage1, converged, res["track_roughness"] = problem, conv, roughness
+        best_theta, previous_rss, previous_dof = candidate, rss, dof
+        theta = candidate
+    if stage1 is None:
+        raise SystemExit("modal fit: no usable fit even with the smoothest tracks")
+    theta = best_theta
+    prior = prior_rows(track, modes, res["track_roughness"])
+    final = stage1
+
+    length_s = p["tau_s"][-1]
+    shape = None
+    if o["shape_knot_spacing_s"] > 0 and c > 1 and length_s > o["shape_knot_spacing_s"]:
+        final.evaluate(theta)
+        beta = final.beta
+        shape = Bspline(length_s, o["shape_knot_spacing_s"])
+        functions = np.hstack([constant, shape.values(p["tau_s"])])
+        varying, pairs = [], []
+        for j in range(modes):
+            u = beta[2 * j * c:2 * (j + 1) * c:2] + 1j * beta[2 * j * c + 1:2 * (j + 1) * c:2]
+            if not np.linalg.norm(u) > 0:
+                u = np.eye(c)[0].astype(complex)
+            basis = complete_basis(u)
+            varying.append((j, basis[:, 0], 0))
+            for dcol in range(1, c):
+                for q in range(shape.size):
+                    if q > 0:
+                        pairs.append((len(varying) - 1, len(varying)))
+                    varying.append((j, basis[:, dcol], 1 + q))
+        probe = VpProblem(p, modes, ig, functions, varying, pairs, 1.0, prior)
+        weight = o["shape_weight"] if o["shape_weight"] >= 0 else choose_shape_weight(probe, theta, p)
+        stage2 = VpProblem(p, modes, ig, functions, varying, pairs, weight, prior)
+        theta2, usable, conv, nfev = solve(stage2, theta, o["max_iterations"])
+        res["iterations"] += nfev
+        if usable:
+            theta, converged, final, res["shape_weight"] = theta2, conv, stage2, weight
+        else:
+            shape = None
+
+    # Final evaluation: linear solution and Jacobian for the posterior covariance.
+    if not final.evaluate(theta):
+        raise SystemExit("modal fit: the fit failed")
+    jac = final.jacobian(theta)
+    beta, e = final.beta, final.e
+    rd = final.rd
+    r_data = final.resid[:rd]
+    dof = max(1, rd - final.nl - final.np)
+    chi2 = (r_data @ r_data) / dof
+    res["converged"] = converged
+    res["residual_rms_whitened"] = math.sqrt((r_data @ r_data) / rd)
+    covariance = max(1.0, chi2) * np.linalg.pinv(jac.T @ jac)
+
+    values, slopes = track.values(p["tau_s"]), track.first_derivatives(p["tau_s"])
+    functions, function_slopes = final.functions, np.zeros_like(final.functions)
+    if shape is not None:
+        function_slopes = np.hstack([np.zeros((n, 1)), shape.first_derivatives(p["tau_s"])])
+    coef = beta[0::2] + 1j * beta[1::2]
+    th = theta.reshape(modes, 2, m)
+    lower = p["L"].astype(complex)
+    fitted = np.zeros((n, c))
+    tracks = []
+    for j in range(modes):
+        ca, cw = th[j, 0], th[j, 1]
+        mt = dict(alpha=values @ ca, omega=values @ cw, alpha_dot=slopes @ ca, omega_dot=slopes @ cw)
+        mt["f"] = mt["omega"] / (2 * np.pi)
+        cov_a = covariance[2 * j * m:(2 * j + 1) * m, 2 * j * m:(2 * j + 1) * m]
+        cov_w = covariance[(2 * j + 1) * m:(2 * j + 2) * m, (2 * j + 1) * m:(2 * j + 2) * m]
+        mt["alpha_sd"] = np.sqrt(np.sum((values @ cov_a) * values, axis=1))
+        mt["f_sd"] = np.sqrt(np.sum((values @ cov_w) * values, axis=1)) / (2 * np.pi)
+        sel = final.t_modes == j
+        cols_j = final.function_columns(j)
+        w = (functions[:, cols_j] * coef[sel]) @ final.t_dirs[:, sel].T  # whitened shape (N x C)
+        w_dot = (function_slopes[:, cols_j] * coef[sel]) @ final.t_dirs[:, sel].T
+        a = w @ lower.T
+        a_dot = w_dot @ lower.T
+        mt["shape"] = a
+        growth, phase_integral = ig @ ca, ig @ cw
+        mt["envelope"] = np.abs(a) * np.exp(growth)[:, None]
+        mt["phase"] = np.unwrap(np.angle(a), axis=0) + phase_integral[:, None]
+        power = np.abs(a) ** 2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rate = np.where(power > 0, (a_dot * np.conj(a)).real / np.where(power > 0, power, 1), 0.0)
+        mt["log_envelope_rate"] = mt["alpha"][:, None] + rate
+        fitted += (a * e[:, j:j + 1]).real
+        with np.errstate(divide="ignore"):
+            mt["anr_db"] = 10 * np.log10(0.5 * np.sum(np.abs(w) ** 2, axis=1) * np.abs(e[:, j]) ** 2)
+        mt["valid"] = (converged & (mt["anr_db"] >= o["anr_threshold_db"])
+                       & (mt["f_sd"] <= o["max_frequency_sd_hz"]) & (mt["omega"] > 0)
+                       & np.isfinite(mt["alpha"]))
+        tracks.append(mt)
+    flag_degenerate_modes(p, o, tracks)
+    order = sorted(range(modes), key=lambda j: tracks[j]["omega"].mean())
+    res["modes"] = [tracks[j] for j in order]
+    res["fitted"] = fitted
+    return res
+
+
+def flag_degenerate_modes(p, o, tracks):
+    n, c = p["y"].shape
+    cumulative = np.concatenate([[0.0], np.cumsum(np.sum(p["yw"].reshape(n, c) ** 2, axis=1))])
+    half = max(1, lround(0.25 * p["rate_hz"]))
+    i = np.arange(n)
+    lo, hi = np.maximum(0, i - half), np.minimum(n, i + half + 1)
+    local = (cumulative[hi] - cumulative[lo]) / (hi - lo)
+    ratio = 10.0 ** (o["max_mode_to_data_db"] / 10.0)
+    for mt in tracks:
+        mt["valid"] &= ~(10.0 ** (mt["anr_db"] / 10.0) > ratio * local)
+    for j in range(len(tracks)):
+        for k in range(j + 1, len(tracks)):
+            a, b = tracks[j], tracks[k]
+            gap = np.abs(a["f"] - b["f"])
+            limit = np.maximum(o["min_mode_separation"] * 0.5 * (a["f"] + b["f"]),
+                               2.0 * (a["f_sd"] + b["f_sd"]))
+            bad = ~(gap > limit)
+            a["valid"] &= ~bad
+            b["valid"] &= ~bad
+
+
+# ---- modal_parameters.cpp, models/arm.cpp -------------------------------------------------------
+def spd_sqrt(m):
+    """(T, C, C) symmetric square roots."""
+    ev, vec = np.linalg.eigh(m)
+    return vec @ (np.sqrt(ev)[..., None] * np.swapaxes(vec, -1, -2))
+
+
+def most_real(u):
+    """(T, C, n) complex shapes -> real unit vectors, each at its most real phase."""
+    phi = 0.5 * np.angle(np.sum(u * u, axis=-2, keepdims=True))
+    v = (u * np.exp(-1j * phi)).real
+    return v / np.linalg.norm(v, axis=-2, keepdims=True)
+
+
+def modal_parameters(tracks, mass):
+    """Eqs 45-46 and the state-space mapping, every time at once. mass (T, C, C)."""
+    w = np.stack([t["omega"] for t in tracks], axis=1)  # (T, n)
+    a = np.stack([t["alpha"] for t in tracks], axis=1)
+    w_dot = np.stack([t["omega_dot"] for t in tracks], axis=1)
+    a_dot = np.stack([t["alpha_dot"] for t in tracks], axis=1)
+    gamma = -a - w_dot / (2 * w)  # eq 45
+    eta2 = w * w + a * a + a * w_dot / w - a_dot  # eq 46 (alpha dot)
+    shapes = np.stack([t["shape"] for t in tracks], axis=2)  # (T, C, n)
+    mu = -gamma + 1j * np.sqrt(np.maximum(0.0, eta2 - gamma * gamma))
+    v_mu = shapes * mu[:, None, :]
+    x = np.concatenate([np.concatenate([shapes, shapes.conj()], axis=2),
+                        np.concatenate([v_mu, v_mu.conj()], axis=2)], axis=1)
+    y = np.concatenate([v_mu * mu[:, None, :], (v_mu * mu[:, None, :]).conj()], axis=2)
+    kc = -(mass @ y @ np.linalg.inv(x)).real
+    n = shapes.shape[2]
+    k, c = kc[:, :, :n], kc[:, :, n:]
+    k = 0.5 * (k + np.swapaxes(k, 1, 2))
+    c = 0.5 * (c + np.swapaxes(c, 1, 2))
+    root = spd_sqrt(mass)
+    uu, _, vv = np.linalg.svd(most_real(root @ shapes))
+    p = uu @ vv
+    valid = np.all([t["valid"] for t in tracks], axis=0) & np.all(eta2 > gamma * gamma, axis=1)
+    finite = np.isfinite(k).all(axis=(1, 2)) & np.isfinite(c).all(axis=(1, 2))
+    pos = np.zeros(k.shape[0], bool)
+    pos[finite] = np.linalg.eigvalsh(k[finite]).min(axis=1) > 0
+    return dict(gamma=gamma, eta2=eta2, k=k, c=c, p=p, root=root, valid=valid & finite & pos)
+
+
+# ---- tfa.cpp, tfa_deviation.cpp, normalized_force.cpp -------------------------------------------
+def read_trial(path, angles):
+    with open(path) as f:
+        header = [h.split("[")[0].strip() for h in f.readline().strip().split(",")]
+    raw = np.loadtxt(path, delimiter=",", skiprows=1)
+    t = raw[:, header.index("t")]
+    return t, raw[:, [header.index(a) for a in angles]]
+
+
+def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
+    t, ang = read_trial(path, angles)
+    step = (t[-1] - t[0]) / (t.size - 1)
+    fs = 1.0 / step
+    dt = 1.0 / fs  # trial.step_s(), as the C++ code rounds it
+    onset = math.ceil((onset_s - t[0]) / dt - 1e-9)
+    lead_s = o["noise_window_s"] + 0.1
+    first_row = max(0, onset - lround(lead_s / dt))
+    start_s = t[0] + first_row * dt
+    free_start_s = max(onset_s + PULSE_S, t[0] + onset * dt)
+    pre = lround(PRE_ONSET_S / dt)
+    posture = ang[onset - pre:onset].mean(axis=0)
+    dev = ang[first_row:] - posture
+    o = dict(o)
+    o["skip_s"] = max(o["skip_s"], free_start_s - onset_s)
+    available = onset_s - start_s - 0.05
+    if available >= 0.1:
+        o["noise_window_s"] = min(o["noise_window_s"], available)
+    modes = ang.shape[1]
+    fit = fit_damped_modes(dev, fs, start_s, onset_s, o, modes)
+    tracks = fit["modes"]
+    times = fit["t_s"]
+    decimation = max(1, lround(fs / fit["rate_hz"]))
+    # M(theta_0(t)) at the nearest input sample: the posture is constant without a baseline.
+    rows = np.clip(np.array([lround(v) for v in (times - start_s) * fs]), 0, dev.shape[0] - 1)
+    th2 = np.full(rows.size, posture[1])
+    mass = np.array([inertia(v) for v in th2])
+    par = modal_parameters(tracks, mass)
+
+    omega = np.stack([tr["omega"] for tr in tracks], axis=1)
+    alpha = np.stack([tr["alpha"] for tr in tracks], axis=1)
+    shapes = np.stack([tr["shape"] for tr in tracks], axis=1)  # (T, n, C)
+    ref = np.argmax(np.abs(shapes), axis=2)
+    rot = np.exp(-1j * np.angle(np.take_along_axis(shapes, ref[:, :, None], axis=2)))
+    rotated = shapes * rot
+    mode_shape = rotated.real / np.linalg.norm(rotated.real, axis=2, keepdims=True)
+    rho = np.angle(rotated)
+    rho = np.where(rho > np.pi / 2, rho - np.pi, rho)
+    rho = np.where(rho <= -np.pi / 2, rho + np.pi, rho)
+    c = shapes.shape[2]
+    others = np.arange(c)[None, None, :] != ref[:, :, None]
+    last_other = c - 1 - np.argmax(others[:, :, ::-1], axis=2)
+    folded = np.take_along_axis(rho, last_other[:, :, None], axis=2)[:, :, 0]
+    # Eq 49 normalized force from the complex envelopes.
+    amp_c = np.stack([tr["envelope"] * np.exp(1j * tr["phase"]) for tr in tracks], axis=1)
+    projector = par["root"] @ par["p"]  # (T, C, n): column j = M^1/2 p_j
+    z = np.einsum("tcj,tjc->tj", projector, amp_c.real) + 1j * np.einsum("tcj,tjc->tj", projector, amp_c.imag)
+    lam = alpha + 1j * omega
+    q = z.real
+    q_dot = (lam * z).real
+    envelope = np.abs(z)
+    force = dict(q=q, q_dot=q_dot, sigma=par["eta2"] * q + 2 * par["gamma"] * q_dot, envelope=envelope,
+                 envelope_force=par["eta2"] * envelope + 2 * par["gamma"] * alpha * envelope)
+
+    def cols(v):  # (T x n) -> [n][T]
+        return [series(v[:, j]) for j in range(v.shape[1])]
+
+    def mats(v):  # (T, r, c) -> [r][c][T]
+        return [[series(v[:, r, cc]) for cc in range(v.shape[2])] for r in range(v.shape[1])]
+
+    out = {"method": "modal",
+           "options": {"angles": list(angles), "forces": [], "onset": str(onset_s), "baseline": "",
+                       "subject": "", "arm": {"l1_m": ARM["l1"], "r1_m": ARM["r1"], "m1_kg": ARM["m1"],
+                                              "iz1_kg_m2": ARM["i1"], "l2_m": ARM["l2"], "r2_m": ARM["r2"],
+                                              "m2_kg": ARM["m2"], "iz2_kg_m2": ARM["i2"]},
+                       "pulse_s": PULSE_S, "decimation": decimation,
+                       "decimate_hz": OPTIONS["decimate_hz"], "knots_s": OPTIONS["knot_spacing_s"],
+                       "shape_knots_s": OPTIONS["shape_knot_spacing_s"], "skip_s": OPTIONS["skip_s"],
+                       "noise_window_s": OPTIONS["noise_window_s"], "init_window_s": OPTIONS["init_window_s"],
+                       "anr_threshold_db": OPTIONS["anr_threshold_db"],
+                       "max_frequency_sd_hz": OPTIONS["max_frequency_sd_hz"],
+                       "max_mode_to_data_db": OPTIONS["max_mode_to_data_db"],
+                       "min_mode_separation": OPTIONS["min_mode_separation"],
+                       "shape_weight": fit["shape_weight"], "track_roughness": fit["track_roughness"],
+                       "shape_weight_from_data": OPTIONS["shape_weight"] < 0,
+                       "track_roughness_from_data": OPTIONS["track_roughness"] < 0,
+                       "mapping": "state_space"},
+           "residual_rms_whitened": fit["residual_rms_whitened"], "converged": bool(fit["converged"]),
+           "noise_covariance_rad2": fit["noise_cov"].tolist(),
+           "onset_s": onset_s, "free_start_s": free_start_s,
+           "analysed_s": [float(times[0]), float(times[-1])], "analysis_rate_hz": fit["rate_hz"],
+           "decimation": decimation, "t_s": series(times),
+           "f_hz": cols(omega / (2 * np.pi)), "f_ridge_hz": cols(omega / (2 * np.pi)),
+           "omega_rad_per_s": cols(omega),
+           "amplitude": [cols(tr["envelope"]) for tr in tracks],
+           "phase_rad": [cols(tr["phase"]) for tr in tracks],
+           "alpha_per_s": cols(alpha), "alpha_ridge_per_s": cols(alpha),
+           "gamma_per_s": cols(par["gamma"]), "eta_squared_per_s2": cols(par["eta2"]),
+           "phase_difference_rad": cols(folded), "time_lag_s": cols(folded / omega),
+           "eigenvectors": mats(par["p"]), "mode_shapes": mats(np.swapaxes(mode_shape, 1, 2)),
+           "K_nm_per_rad": mats(par["k"]), "C_nms_per_rad": mats(par["c"]),
+           "M_kg_m2": mats(par["root"] @ par["root"]),
+           "normalized_force": {key: cols(v) for key, v in force.items()},
+           "valid": [tr["valid"].tolist() for tr in tracks],
+           "anr_db": [series(tr["anr_db"]) for tr in tracks],
+           "K_valid": par["valid"].tolist(),
+           "iterations": fit["iterations"]}
+    return out
+
+
+def series(v):
+    v = np.asarray(v, float)
+    if np.isfinite(v).all():
+        return v.tolist()
+    return [float(x) if math.isfinite(x) else None for x in v.tolist()]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("trial", nargs="?")
+    ap.add_argument("--onset", type=float, default=2.5)
+    ap.add_argument("--angles", default="th1,th2")
+    ap.add_argument("-o", "--output")
+    ap.add_argument("--make-trial")
+    a = ap.parse_args()
+    if a.make_trial:
+        make_trial(a.make_trial)
+        return
+    if not a.trial:
+        ap.error("give TRIAL.csv or --make-trial PATH")
+    out = identify(a.trial, a.onset, tuple(a.angles.split(",")))
+    if a.output:
+        with open(a.output, "w") as f:
+            f.write(json.dumps(out))  # dumps: the C encoder (dump streams through the Python one)
+    else:
+        print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
