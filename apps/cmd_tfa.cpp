@@ -21,8 +21,9 @@
 //   "eigenvectors"[r][c] (P(t), columns = modes), "mode_shapes"[r][c] (joint space),
 //   "K_nm_per_rad"[r][c], "C_nms_per_rad"[r][c] (eq 48), "M_kg_m2"[r][c] (M(theta(t)) used),
 //   "normalized_force": {"q"[j], "q_dot"[j], "sigma"[j], "envelope"[j], "envelope_force"[j]},
-//   "valid"[j] (per time: mode j's amplitude-to-noise ratio and frequency SD within limits; all
-//   true for the spectrogram method when every frame resolved), "anr_db"[j] (modal; null for the
+//   "valid"[j] (per time: mode j's amplitude-to-noise ratio and frequency SD within limits; for
+//   the spectrogram method: the frame resolved, its frequency inside the ridge band and near its
+//   ridge), "anr_db"[j] (modal; null for the
 //   spectrogram), "K_valid" (per time: every mode valid and eta^2 > Gamma^2; modal).
 // For --method modal the spectrogram options are not used; "options" lists the modal ones and the
 // data-chosen weights, and f_ridge_hz / alpha_ridge_per_s repeat the fitted tracks.
@@ -276,7 +277,11 @@ void run(TfaCommandOptions cli) {
       valid.push_back(std::vector<bool>(track.valid.data(), track.valid.data() + track.valid.size()));
       anr.push_back(series(track.anr_db));
     } else {
-      valid.push_back(std::vector<bool>(frames, r.status.ok));
+      std::vector<bool> ok(frames, false);  // the ridge frames are the modal-analysis frames
+      for (Eigen::Index m = 0; m < frames && m < r.ridges.valid.rows(); ++m) {
+        ok[m] = r.status.ok && r.ridges.valid(m, j);
+      }
+      valid.push_back(ok);
       anr.push_back(std::vector<std::nullptr_t>(frames, nullptr));
     }
   }

@@ -718,6 +718,8 @@ RidgeResult as_ridges(const DampedModesResult& result) {
         complex_amplitude(i, k) = std::polar(m.envelope(i, k), m.phase_rad(i, k));
     r.amplitude_c.push_back(std::move(complex_amplitude));
   }
+  r.valid.resize(t, n);
+  for (int j = 0; j < n; ++j) r.valid.col(j) = result.modes[j].valid;
   r.status = result.status;
   return r;
 }

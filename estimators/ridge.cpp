@@ -437,18 +437,33 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
 
   int failed_frames = 0;
   const double nan = std::numeric_limits<double>::quiet_NaN();
+  r.valid.resize(frames, n);
   for (int m = 0; m < frames; ++m) {
     const FrameFit& fit = fits[m];
     if (!fit.ok) ++failed_frames;
     for (int j = 0; j < n; ++j) {
       r.omega_rad_per_s(m, j) = fit.ok ? fit.lambda[j].imag() : nan;
       r.frequency_hz(m, j) = r.omega_rad_per_s(m, j) / (2.0 * M_PI);
+      const double f = r.frequency_hz(m, j);
+      r.valid(m, j) = fit.ok && std::isfinite(fit.lambda[j].real()) &&
+                      f >= options.min_frequency_hz && f <= options.max_frequency_hz;
       r.decay_rate_per_s(m, j) = fit.ok ? fit.lambda[j].real() : nan;
       for (int c = 0; c < channels; ++c) {
         const cd a = !fit.ok ? cd(nan, nan) : ctx.real_signal ? 2.0 * fit.coef(j, c) : fit.coef(j, c);
         r.amplitude_c[j](m, c) = a;
         r.amplitude[j](m, c) = std::abs(a);
         r.phase_rad[j](m, c) = std::arg(a);
+      }
+    }
+  }
+  for (int m = 0; m < frames; ++m) {  // two fits on one mode: neither is a mode of its own
+    for (int j = 0; j + 1 < n; ++j) {
+      for (int i = j + 1; i < n; ++i) {
+        const double fj = r.frequency_hz(m, j), fi = r.frequency_hz(m, i);
+        if (std::abs(fi - fj) < options.min_mode_separation * 0.5 * std::abs(fi + fj)) {
+          r.valid(m, j) = false;
+          r.valid(m, i) = false;
+        }
       }
     }
   }

@@ -24,6 +24,8 @@ struct RidgeOptions {
   int fit_half_width_bins = 1;         ///< the frame model is fitted on bins ridge +- this many
   int refine_iterations = 12;          ///< rounds of interference cancellation for starting values
   double relaxation = 0.6;             ///< step of each round towards its new estimate, (0, 1]
+  double min_mode_separation = 0.01;   ///< validity: modes whose frequencies differ by less than
+                                       ///< this fraction of their mean are both invalid (merged)
 };
 
 /// Per-frame description of the modes. With lambda_j = alpha_j + i omega_j, the part of channel k
@@ -38,6 +40,10 @@ struct RidgeResult {
   std::vector<Eigen::MatrixXd> amplitude;     ///< [n] of (T x C) A_jk, channel units (rad)
   std::vector<Eigen::MatrixXd> phase_rad;     ///< [n] of (T x C) phase of mode j in channel k
   std::vector<Eigen::MatrixXcd> amplitude_c;  ///< [n] of (T x C) complex amplitudes
+  /// (T x n) mode j resolved at frame t: the frame fit converged, its frequency lies inside the
+  /// ridge band (a fit that wanders off, e.g. onto a slow real pole at 0 Hz, is not a mode of the
+  /// band) and no other mode's fit is within min_mode_separation of it (two fits on one mode)
+  Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic> valid;
   Status status;                     ///< failure when a frame could not be resolved
 };
 

@@ -42,6 +42,7 @@ BOOST_AUTO_TEST_CASE(single_decaying_cosine_gives_exact_frequency_decay_and_ampl
   ro.modes = 1;
   const est::RidgeResult r = est::track_ridges(sg, ro);
   BOOST_REQUIRE(r.status.ok);
+  BOOST_CHECK(r.valid.all());
   double worst_f = 0, worst_a = 0, worst_amp = 0;
   for (int m = 0; m < sg.frames(); ++m) {
     const double t = r.time_s(m);
@@ -140,6 +141,7 @@ BOOST_AUTO_TEST_CASE(two_modes_one_hertz_apart_are_both_tracked) {
   const est::RidgeResult r =
       est::track_ridges(sg, {.modes = 2, .min_frequency_hz = 5.0, .max_frequency_hz = 20.0});
   BOOST_REQUIRE(r.status.ok);
+  BOOST_CHECK(r.valid.all());
   for (int m = 0; m < sg.frames(); ++m) {
     for (int j = 0; j < 2; ++j) {
       BOOST_CHECK_SMALL(r.frequency_hz(m, j) / f[j] - 1, 1e-6);
@@ -148,6 +150,42 @@ BOOST_AUTO_TEST_CASE(two_modes_one_hertz_apart_are_both_tracked) {
                         1e-6);
     }
   }
+}
+
+BOOST_AUTO_TEST_CASE(ridges_whose_fit_leaves_the_band_or_merges_are_not_valid) {
+  // A 6 Hz mode and a non-oscillating decay (a real pole, as the creep of a Poynting-Thomson
+  // element), asked for two modes in 0.5-30 Hz: one ridge has to sit on the real pole's spectrum
+  // at the band's bottom, and its exact frame fit converges to the pole at 0 Hz (or onto the
+  // 6 Hz mode). Such frames must be flagged: every frame whose fitted frequency is outside the
+  // band, or whose two fits are within 1 % of each other, is invalid; the rest are valid. (Not
+  // all valid 6 Hz fits are exact: a real pole is not in the frame model, and the flags cannot
+  // tell an in-band fit that it absorbed; docs/tfa.md, Limits.)
+  est::TfSignal s = damped_cosines(1000.0, 4.0, {6.0}, {-1.5}, {0.02}, {0.4});
+  for (int i = 0; i < s.real.rows(); ++i) s.real(i, 0) += 0.005 * std::exp(-2.0 * i / 1000.0);
+  est::ReassignedSpectrogramOptions o;
+  o.window_s = 0.75;
+  o.hop_s = 0.01;
+  o.max_frequency_hz = 30.0;
+  const est::ReassignedSpectrogram sg = est::reassigned_spectrogram(s, o);
+  const est::RidgeResult r =
+      est::track_ridges(sg, {.modes = 2, .min_frequency_hz = 0.5, .max_frequency_hz = 30.0});
+  BOOST_REQUIRE_EQUAL(r.valid.rows(), sg.frames());
+  int out_of_band = 0, flagged_wrongly = 0, exact_6hz = 0;
+  for (int m = 0; m < sg.frames(); ++m) {
+    const double f0 = r.frequency_hz(m, 0), f1 = r.frequency_hz(m, 1);
+    const bool merged = std::abs(f1 - f0) < 0.01 * 0.5 * std::abs(f0 + f1);
+    for (int j = 0; j < 2; ++j) {
+      const double f = r.frequency_hz(m, j);
+      const bool in_band = f >= 0.5 && f <= 30.0;
+      out_of_band += !in_band;
+      flagged_wrongly += r.valid(m, j) != (in_band && !merged);
+      exact_6hz += r.valid(m, j) && std::abs(f / 6.0 - 1.0) < 1e-6;
+    }
+  }
+  BOOST_TEST_MESSAGE("real pole + 6 Hz mode: " << out_of_band << " of " << 2 * sg.frames()
+                     << " fits outside the band; " << exact_6hz << " valid fits exact at 6 Hz");
+  BOOST_CHECK_GT(out_of_band, sg.frames() / 2);  // the case does exercise the flag
+  BOOST_CHECK_EQUAL(flagged_wrongly, 0);
 }
 
 BOOST_AUTO_TEST_CASE(window_slopes_are_the_derivatives_of_the_values) {
