@@ -126,10 +126,13 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
           for (int p = 0; p < parts; ++p) {
             const Eigen::MatrixXd& x = p == 0 ? signal.real : signal.imag;
             for (int ch = 0; ch < channels; ++ch) {
+              // Offset n goes to FFT index n mod N: the negative offsets wrap to the end.
               double* col = chunk.col(f * per_frame + (w * parts + p) * channels + ch).data();
+              const double* window = windows[w]->data();
+              const double* samples = &x(r.centre(m) + cut.lo, ch);
               for (int i = 0; i < cut.h.size(); ++i) {
                 const int n = cut.lo + i;
-                col[(n + n_fft) % n_fft] = (*windows[w])(i) * x(r.centre(m) + n, ch);
+                col[n < 0 ? n + n_fft : n] = window[i] * samples[i];
               }
             }
           }
