@@ -26,19 +26,43 @@ struct ElementEval {
   Mat k0, c0, ks, cubic, c0_inverse;
   const TimeProfile* stiffness_profile = nullptr;
   const TimeProfile* damping_profile = nullptr;
+  // Matrix tables (KV, Duffing) as fixed-size knots; interpolated by table_interpolate, the same
+  // code as the scalar table profile.
+  const std::vector<double>* stiffness_times = nullptr;
+  const std::vector<double>* damping_times = nullptr;
+  std::vector<Mat> stiffness_knots, damping_knots;
 
   explicit ElementEval(const Viscoelasticity& e)
-      : kind(e.kind),
-        k0(e.stiffness),
-        c0(e.damping_rotation_rad != 0.0 && e.dimension() == 2
-               ? Eigen::MatrixXd(rotate_damping(e.damping, e.damping_rotation_rad))
-               : e.damping),
-        stiffness_profile(&e.stiffness_profile),
-        damping_profile(&e.damping_profile) {
+      : kind(e.kind), stiffness_profile(&e.stiffness_profile), damping_profile(&e.damping_profile) {
     const int n = e.dimension();
+    k0 = e.stiffness.size() ? Mat(e.stiffness) : Mat(Mat::Zero(n, n));
+    c0 = e.damping.size() == 0 ? Mat(Mat::Zero(n, n))
+         : e.damping_rotation_rad != 0.0 && n == 2
+             ? Mat(Eigen::MatrixXd(rotate_damping(e.damping, e.damping_rotation_rad)))
+             : Mat(e.damping);
+    if (!e.stiffness_table.empty()) {
+      stiffness_times = &e.stiffness_table.time_s;
+      for (const Eigen::MatrixXd& m : e.stiffness_table.value) stiffness_knots.emplace_back(m);
+    }
+    if (!e.damping_table.empty()) {
+      damping_times = &e.damping_table.time_s;
+      for (const Eigen::MatrixXd& m : e.damping_table.value) damping_knots.emplace_back(m);
+    }
     ks = e.kind == ElementKind::poynting_thomson ? Mat(e.series_stiffness) : Mat(Mat::Zero(n, n));
     cubic = e.kind == ElementKind::duffing ? Mat(e.cubic_stiffness) : Mat(Mat::Zero(n, n));
     c0_inverse = e.kind == ElementKind::poynting_thomson ? Mat(c0.inverse()) : Mat(Mat::Zero(n, n));
+  }
+
+  // K(t) d and C(t) d' of eqs 15, 17: the profile times the constant matrix, or the table.
+  template <class V>
+  Vec stiffness_term(double t, double branch, const V& d) const {
+    if (stiffness_times) return table_interpolate(*stiffness_times, stiffness_knots, t, branch) * d;
+    return stiffness_profile->value(t, branch) * (k0 * d);
+  }
+  template <class V>
+  Vec damping_term(double t, double branch, const V& dd) const {
+    if (damping_times) return table_interpolate(*damping_times, damping_knots, t, branch) * dd;
+    return damping_profile->value(t, branch) * (c0 * dd);
   }
 
   // Force on the limb (eqs 15-17) for deviation d, rate dd, internal state z.
@@ -48,17 +72,16 @@ struct ElementEval {
       case ElementKind::none:
         return Vec::Zero(d.size());
       case ElementKind::kelvin_voigt:
-        return -(damping_profile->value(t, branch) * (c0 * dd)) -
-               stiffness_profile->value(t, branch) * (k0 * d);
+        return -damping_term(t, branch, dd) - stiffness_term(t, branch, d);
       case ElementKind::duffing:
-        return -(damping_profile->value(t, branch) * (c0 * dd)) -
-               stiffness_profile->value(t, branch) * (k0 * d) - cubic * d.array().cube().matrix();
+        return -damping_term(t, branch, dd) - stiffness_term(t, branch, d) -
+               cubic * d.array().cube().matrix();
       case ElementKind::poynting_thomson:
         return -(ks * (d - z));
     }
     return Vec::Zero(d.size());
   }
-  // z' of the Poynting-Thomson element: C_P(t) z' = K_S (d - z) - K_P(t) z.
+  // z' of the Poynting-Thomson element (no tables): C_P(t) z' = K_S (d - z) - K_P(t) z.
   template <class V>
   Vec internal_rate(double t, double branch, const V& d, const V& z) const {
     const Vec drive = ks * (d - z) - stiffness_profile->value(t, branch) * (k0 * z);
@@ -386,7 +409,8 @@ Eigen::RowVectorXd flatten(const Eigen::MatrixXd& m) {
   return out;
 }
 
-// Fills the profile-based truth (K(t), C(t), u_K, u_C) of an element at the sample times.
+// Fills the element truth (K(t), C(t), u_K, u_C) at the sample times: the profile times the
+// constant matrix, or the interpolated table (u = 1 then: a table has no profile).
 void fill_element_truth(const Viscoelasticity& e, Truth& truth) {
   const Eigen::Index samples = truth.time_s.size();
   const int n = e.dimension();
@@ -398,11 +422,27 @@ void fill_element_truth(const Viscoelasticity& e, Truth& truth) {
     truth.stiffness_profile(s) = none ? 0.0 : e.stiffness_profile.value(t);
     truth.damping_profile(s) = none ? 0.0 : e.damping_profile.value(t);
   }
-  const Eigen::MatrixXd c_rot = e.damping_rotation_rad != 0.0 && n == 2
-                                    ? Eigen::MatrixXd(rotate_damping(e.damping, e.damping_rotation_rad))
-                                    : e.damping;
-  truth.stiffness = truth.stiffness_profile * flatten(e.stiffness);
-  truth.damping = truth.damping_profile * flatten(c_rot);
+  auto table_series = [&](const MatrixTable& table) {
+    Eigen::MatrixXd series(samples, n * n);
+    for (Eigen::Index s = 0; s < samples; ++s) {
+      fill_matrix_row(series, s, table.at(truth.time_s(s)));
+    }
+    return series;
+  };
+  if (e.stiffness_table.empty()) {
+    truth.stiffness = truth.stiffness_profile * flatten(e.stiffness);
+  } else {
+    truth.stiffness = table_series(e.stiffness_table);
+  }
+  if (e.damping_table.empty()) {
+    const Eigen::MatrixXd c_rot =
+        e.damping_rotation_rad != 0.0 && n == 2
+            ? Eigen::MatrixXd(rotate_damping(e.damping, e.damping_rotation_rad))
+            : e.damping;
+    truth.damping = truth.damping_profile * flatten(c_rot);
+  } else {
+    truth.damping = table_series(e.damping_table);
+  }
   if (e.kind == ElementKind::poynting_thomson) truth.series_stiffness = e.series_stiffness;
   if (e.kind == ElementKind::duffing) truth.cubic_stiffness = e.cubic_stiffness;
 }
@@ -442,6 +482,8 @@ std::vector<double> all_breakpoints(const TrialSpec& spec, const Viscoelasticity
   std::vector<double> inner = forcing.breakpoints(t_end);
   for (double t : e.stiffness_profile.breakpoints(0.0, t_end)) inner.push_back(t);
   for (double t : e.damping_profile.breakpoints(0.0, t_end)) inner.push_back(t);
+  for (double t : e.stiffness_table.breakpoints(0.0, t_end)) inner.push_back(t);
+  for (double t : e.damping_table.breakpoints(0.0, t_end)) inner.push_back(t);
   (void)spec;
   return inner;
 }
@@ -558,7 +600,8 @@ bool is_linear_time_invariant(const TrialSpec& spec) {
   const Viscoelasticity& e = spec.endpoint.element;
   return (e.kind == ElementKind::kelvin_voigt || e.kind == ElementKind::none) &&
          (e.kind == ElementKind::none || (e.stiffness_profile.kind == ProfileKind::constant &&
-                                          e.damping_profile.kind == ProfileKind::constant)) &&
+                                          e.damping_profile.kind == ProfileKind::constant &&
+                                          e.stiffness_table.empty() && e.damping_table.empty())) &&
          spec.perturbations.pulses.empty() && spec.perturbations.ramps.empty();
 }
 
@@ -590,9 +633,9 @@ SimulationResult simulate_endpoint(const TrialSpec& spec, std::mt19937_64& rng) 
   result.integrator = method;
   if (method == IntegratorKind::exact) {
     if (!lti) {
-      throw InputError(spec.source + ": integrator.method: \"exact\" needs a linear time-invariant "
-                       "endpoint model (kelvin_voigt, constant profiles) driven by random forces "
-                       "only");
+      throw InputError(spec.source + ": integrator.method: \"exact\" needs a linear " +
+                       "time-invariant endpoint model (kelvin_voigt, constant profiles, no " +
+                       "tables) driven by random forces only");
     }
     const Eigen::MatrixXd k = e.kind == ElementKind::none ? Eigen::MatrixXd::Zero(n, n) : e.stiffness;
     const Eigen::MatrixXd c = e.kind == ElementKind::none ? Eigen::MatrixXd::Zero(n, n) : damping_at(e, 0.0);

@@ -108,17 +108,23 @@ class Object {
     std::string key;
     const auto v = find(base, units, &key);
     if (!v) return std::nullopt;
-    const json& m = *v->first;
+    return to_matrix(*v->first, key_path(key), size, v->second);
+  }
+  // An array of square matrices (a matrix table), each (size x size); nullopt when absent.
+  std::optional<std::vector<Eigen::MatrixXd>> matrices(const std::string& base,
+                                                       const std::vector<Unit>& units, int size) {
+    std::string key;
+    const auto v = find(base, units, &key);
+    if (!v) return std::nullopt;
     const std::string where = key_path(key);
-    if (m.is_number() && size == 1) return Eigen::MatrixXd::Constant(1, 1, m.get<double>() * v->second);
-    if (!m.is_array() || m.empty()) fail(where, "expected a square matrix as an array of rows");
-    const int n = size > 0 ? size : static_cast<int>(m.size());
-    if (static_cast<int>(m.size()) != n) {
-      fail(where, "expected " + std::to_string(n) + " rows, got " + std::to_string(m.size()));
+    if (!v->first->is_array() || v->first->empty()) {
+      fail(where, "expected an array of " + std::to_string(size) + " x " + std::to_string(size) +
+                      " matrices (one per time)");
     }
-    Eigen::MatrixXd out(n, n);
-    for (int i = 0; i < n; ++i) {
-      out.row(i) = to_vector(m[i], where + "[" + std::to_string(i) + "]", n, v->second).transpose();
+    std::vector<Eigen::MatrixXd> out;
+    for (std::size_t k = 0; k < v->first->size(); ++k) {
+      out.push_back(
+          to_matrix((*v->first)[k], where + "[" + std::to_string(k) + "]", size, v->second));
     }
     return out;
   }
@@ -155,6 +161,26 @@ class Object {
       for (const std::string& n : names) expected += (expected.empty() ? "" : ", ") + n;
       fail(key_path(key), "unknown key (expected one of: " + expected + ")");
     }
+  }
+
+  // A square matrix as an array of rows (size < 0: as many rows as given; a number for size 1).
+  Eigen::MatrixXd to_matrix(const json& m, const std::string& where, int size,
+                            double factor) const {
+    if (m.is_number() && size == 1) {
+      const double x = m.get<double>() * factor;
+      if (!std::isfinite(x)) fail(where, "expected a finite number");
+      return Eigen::MatrixXd::Constant(1, 1, x);
+    }
+    if (!m.is_array() || m.empty()) fail(where, "expected a square matrix as an array of rows");
+    const int n = size > 0 ? size : static_cast<int>(m.size());
+    if (static_cast<int>(m.size()) != n) {
+      fail(where, "expected " + std::to_string(n) + " rows, got " + std::to_string(m.size()));
+    }
+    Eigen::MatrixXd out(n, n);
+    for (int i = 0; i < n; ++i) {
+      out.row(i) = to_vector(m[i], where + "[" + std::to_string(i) + "]", n, factor).transpose();
+    }
+    return out;
   }
 
   Eigen::VectorXd to_vector(const json& a, const std::string& where, int size, double factor) const {
@@ -237,10 +263,14 @@ void parse_element(Object& o, Viscoelasticity& e, Space space, int n, double dur
     const std::string key = element_key(field, space);
     const std::size_t cut = key.find('_', field.size());
     const std::string suffix = key.substr(cut + 1);
-    if (auto m = o.matrix(field, {{suffix, 1.0}}, n)) target = *m;
+    if (auto m = o.matrix(field, {{suffix, 1.0}}, n)) {
+      target = *m;
+      return true;
+    }
+    return false;
   };
-  matrix_field("stiffness", e.stiffness);
-  matrix_field("damping", e.damping);
+  const bool stiffness_given = matrix_field("stiffness", e.stiffness);
+  const bool damping_given = matrix_field("damping", e.damping);
   matrix_field("series_stiffness", e.series_stiffness);
   matrix_field("cubic_stiffness", e.cubic_stiffness);
   if (e.kind == ElementKind::poynting_thomson && e.series_stiffness.size() == 0) {
@@ -251,12 +281,42 @@ void parse_element(Object& o, Viscoelasticity& e, Space space, int n, double dur
   }
   e.stiffness_profile.horizon_s = duration_s;
   e.damping_profile.horizon_s = duration_s;
-  if (const auto p = o.child("stiffness_profile")) {
-    e.stiffness_profile = parse_profile(**p, o.key_path("stiffness_profile"), o.source(), duration_s);
+  const auto k_profile = o.child("stiffness_profile");
+  const auto c_profile = o.child("damping_profile");
+  if (k_profile) {
+    e.stiffness_profile =
+        parse_profile(**k_profile, o.key_path("stiffness_profile"), o.source(), duration_s);
   }
-  if (const auto p = o.child("damping_profile")) {
-    e.damping_profile = parse_profile(**p, o.key_path("damping_profile"), o.source(), duration_s);
+  if (c_profile) {
+    e.damping_profile =
+        parse_profile(**c_profile, o.key_path("damping_profile"), o.source(), duration_s);
   }
+  // A matrix table replaces the constant matrix and its profile: {"time_s": [P], KEY: [P][n][n]}.
+  auto table_field = [&](const std::string& field, bool matrix_given, bool profile_given,
+                         Eigen::MatrixXd& matrix, MatrixTable& table) {
+    const std::string table_key = field + "_table";
+    const auto t = o.child(table_key);
+    if (!t) return;
+    const std::string path = o.key_path(table_key);
+    const std::string value_key = element_key(field, space);
+    if (matrix_given) o.fail(path, "give either " + table_key + " or " + value_key + ", not both");
+    if (profile_given) {
+      o.fail(path, "a table replaces " + field + "_profile (the table holds the matrices), " +
+                       "give only one");
+    }
+    Object table_object(**t, path, o.source());
+    const auto times = table_object.vector("time", kSeconds, -1);
+    const std::size_t cut = value_key.find('_', field.size());
+    const auto values = table_object.matrices(field, {{value_key.substr(cut + 1), 1.0}}, n);
+    table_object.finish();
+    if (!times) table_object.fail(table_object.key_path("time_s"), "missing");
+    if (!values) table_object.fail(table_object.key_path(value_key), "missing");
+    table.time_s.assign(times->data(), times->data() + times->size());
+    table.value = *values;
+    matrix.resize(0, 0);
+  };
+  table_field("stiffness", stiffness_given, k_profile.has_value(), e.stiffness, e.stiffness_table);
+  table_field("damping", damping_given, c_profile.has_value(), e.damping, e.damping_table);
   o.number("damping_rotation", kAngle, e.damping_rotation_rad);
 }
 
@@ -522,15 +582,31 @@ json profile_json(const TimeProfile& p) {
   return out;
 }
 
+json table_json(const MatrixTable& table, const std::string& value_key) {
+  json values = json::array();
+  for (const Eigen::MatrixXd& m : table.value) values.push_back(matrix_json(m));
+  return {{"time_s", table.time_s}, {value_key, values}};
+}
+
 void element_json(const Viscoelasticity& e, Space space, json& out) {
   out["kind"] = element_kind_name(e.kind);
-  out[element_key("stiffness", space)] = matrix_json(e.stiffness);
-  out[element_key("damping", space)] = matrix_json(e.damping);
+  if (e.stiffness_table.empty()) {
+    out[element_key("stiffness", space)] = matrix_json(e.stiffness);
+    out["stiffness_profile"] = profile_json(e.stiffness_profile);
+  } else {
+    out["stiffness_table"] = table_json(e.stiffness_table, element_key("stiffness", space));
+  }
+  if (e.damping_table.empty()) {
+    out[element_key("damping", space)] = matrix_json(e.damping);
+    out["damping_profile"] = profile_json(e.damping_profile);
+    out["damping_rotation_rad"] = e.damping_rotation_rad;
+  } else {
+    out["damping_table"] = table_json(e.damping_table, element_key("damping", space));
+  }
   if (e.series_stiffness.size()) out[element_key("series_stiffness", space)] = matrix_json(e.series_stiffness);
-  if (e.cubic_stiffness.size()) out[element_key("cubic_stiffness", space)] = matrix_json(e.cubic_stiffness);
-  out["stiffness_profile"] = profile_json(e.stiffness_profile);
-  out["damping_profile"] = profile_json(e.damping_profile);
-  out["damping_rotation_rad"] = e.damping_rotation_rad;
+  if (e.cubic_stiffness.size()) {
+    out[element_key("cubic_stiffness", space)] = matrix_json(e.cubic_stiffness);
+  }
 }
 
 }  // namespace

@@ -176,6 +176,12 @@ void TrialSpec::validate() const {
   }
   if (std::isnan(noise.snr_db)) throw InputError(where(source, "noise.snr_db") + ": expected a number");
   if (noise.signal_dependent) require_finite(source, "noise.sdn_max_snr_db", noise.sdn_max_snr_db);
+  const Viscoelasticity& element = model == ModelKind::arm ? joint : endpoint.element;
+  if (noise.signal_dependent && !element.stiffness_table.empty()) {
+    throw InputError(where(source, "noise.signal_dependent") +
+                     ": signal-dependent noise follows the stiffness profile u_K(t), which a "
+                     "stiffness_table replaces; use a profile or constant noise");
+  }
   require_positive(source, "integrator.absolute_tolerance", integrator.absolute_tolerance);
   require_positive(source, "integrator.relative_tolerance", integrator.relative_tolerance);
   require_positive(source, "integrator.initial_step_s", integrator.initial_step_s);

@@ -52,15 +52,36 @@ double min_eigenvalue(const Eigen::MatrixXd& m) {
 
 }  // namespace
 
+std::vector<double> table_breakpoints(const std::vector<double>& time_s, double t0_s, double t1_s) {
+  std::vector<double> out;
+  if (time_s.size() < 2) return out;  // one knot: a constant, nothing to stop at
+  for (double t : time_s) {
+    if (t > t0_s && t < t1_s) out.push_back(t);
+  }
+  return out;
+}
+
+void validate_table_times(const std::vector<double>& time_s, std::size_t values,
+                          const std::string& key) {
+  if (time_s.empty() || time_s.size() != values) {
+    throw InputError(key + ": a table needs as many times as values, at least one (got " +
+                     std::to_string(time_s.size()) + " times and " + std::to_string(values) +
+                     " values)");
+  }
+  for (std::size_t k = 0; k < time_s.size(); ++k) {
+    if (!std::isfinite(time_s[k])) {
+      throw InputError(key + ".time_s[" + std::to_string(k) + "]: expected a finite time in s");
+    }
+    if (k > 0 && !(time_s[k] > time_s[k - 1])) {
+      throw InputError(key + ".time_s[" + std::to_string(k) +
+                       "]: expected strictly increasing times");
+    }
+  }
+}
+
 double TimeProfile::value(double t_s, double branch_s) const {
   if (kind == ProfileKind::table) {
-    const auto& tt = table_time_s;
-    if (branch_s < tt.front() || tt.size() == 1) return table_value.front();
-    if (branch_s >= tt.back()) return table_value.back();
-    const auto upper = std::upper_bound(tt.begin(), tt.end(), branch_s);
-    const std::size_t k = static_cast<std::size_t>(upper - tt.begin());
-    const double w = (t_s - tt[k - 1]) / (tt[k] - tt[k - 1]);
-    return (1.0 - w) * table_value[k - 1] + w * table_value[k];
+    return table_interpolate(table_time_s, table_value, t_s, branch_s);
   }
   if (kind == ProfileKind::constant || branch_s < start_s) return 1.0;
   const double three_quarters = 0.75 * horizon_s;
@@ -79,9 +100,7 @@ double TimeProfile::value(double t_s, double branch_s) const {
 std::vector<double> TimeProfile::breakpoints(double t0_s, double t1_s) const {
   std::vector<double> out;
   if (kind == ProfileKind::table) {
-    for (double t : table_time_s) {
-      if (t > t0_s && t < t1_s) out.push_back(t);
-    }
+    out = table_breakpoints(table_time_s, t0_s, t1_s);
   } else if (kind != ProfileKind::constant && start_s > t0_s && start_s < t1_s) {
     out.push_back(start_s);
   }
@@ -90,16 +109,9 @@ std::vector<double> TimeProfile::breakpoints(double t0_s, double t1_s) const {
 
 void TimeProfile::validate(const std::string& key) const {
   if (kind == ProfileKind::table) {
-    if (table_time_s.empty() || table_time_s.size() != table_value.size()) {
-      throw InputError(key + ": a table profile needs as many times as values, at least one");
-    }
-    for (std::size_t k = 0; k < table_time_s.size(); ++k) {
-      if (!std::isfinite(table_time_s[k]) || !std::isfinite(table_value[k])) {
-        throw InputError(key + ": table entries must be finite");
-      }
-      if (k > 0 && !(table_time_s[k] > table_time_s[k - 1])) {
-        throw InputError(key + ".time_s: expected strictly increasing times");
-      }
+    validate_table_times(table_time_s, table_value.size(), key);
+    for (double v : table_value) {
+      if (!std::isfinite(v)) throw InputError(key + ".value: table entries must be finite");
     }
     return;
   }
@@ -158,6 +170,50 @@ std::string element_key(const std::string& field, Space space) {
   return field + (joint ? "_nm_per_rad" : "_n_per_m");
 }
 
+namespace {
+
+// A stiffness (positive definite) or damping (positive semi-definite; definite for PT) matrix.
+void require_element_matrix(const Eigen::MatrixXd& m, int n, bool stiffness, bool definite,
+                            const std::string& key) {
+  require_square(m, n, key);
+  require_symmetric(m, key);
+  if (stiffness || definite) {
+    if (!(min_eigenvalue(m) > 0.0)) {
+      throw InputError(key + ": expected a positive definite matrix, got " + describe(m));
+    }
+  } else if (!(min_eigenvalue(m) > -1e-12)) {
+    throw InputError(key + ": expected a positive semi-definite matrix, got " + describe(m));
+  }
+}
+
+// A matrix table under `key` ("viscoelasticity.stiffness_table"): given alone (no constant matrix
+// `matrix_key`, a constant profile), times, and every knot matrix as the constant one.
+void validate_matrix_table(const MatrixTable& table, const Eigen::MatrixXd& matrix,
+                           const TimeProfile& profile, ElementKind kind, int n, bool stiffness,
+                           const std::string& key, const std::string& matrix_key,
+                           const std::string& profile_key) {
+  if (kind != ElementKind::kelvin_voigt && kind != ElementKind::duffing) {
+    throw InputError(key + ": matrix tables are for kelvin_voigt and duffing elements, not " +
+                     element_kind_name(kind));
+  }
+  if (matrix.size()) {
+    throw InputError(key + ": give either " + key.substr(key.rfind('.') + 1) + " or " +
+                     matrix_key.substr(matrix_key.rfind('.') + 1) + ", not both");
+  }
+  if (profile.kind != ProfileKind::constant) {
+    throw InputError(key + ": a table replaces " + profile_key.substr(profile_key.rfind('.') + 1) +
+                     " (the table holds K(t) or C(t) itself), give only one");
+  }
+  validate_table_times(table.time_s, table.value.size(), key);
+  const std::string value_key = key + "." + matrix_key.substr(matrix_key.rfind('.') + 1);
+  for (std::size_t k = 0; k < table.value.size(); ++k) {
+    require_element_matrix(table.value[k], n, stiffness, false,
+                           value_key + "[" + std::to_string(k) + "]");
+  }
+}
+
+}  // namespace
+
 void Viscoelasticity::validate(const std::string& prefix, Space space) const {
   const std::string key = prefix + ".";
   const std::string k_key = key + element_key("stiffness", space);
@@ -166,21 +222,26 @@ void Viscoelasticity::validate(const std::string& prefix, Space space) const {
   const std::string b_key = key + element_key("cubic_stiffness", space);
   const int n = dimension();
   if (n < 1) throw InputError(k_key + ": the stiffness matrix is empty");
-  require_square(stiffness, n, k_key);
-  require_square(damping, n, c_key);
+  if (stiffness_table.empty()) {
+    require_square(stiffness, n, k_key);
+  } else {
+    validate_matrix_table(stiffness_table, stiffness, stiffness_profile, kind, n, true,
+                          key + "stiffness_table", k_key, key + "stiffness_profile");
+  }
+  if (damping_table.empty()) {
+    require_square(damping, n, c_key);
+  } else {
+    validate_matrix_table(damping_table, damping, damping_profile, kind, n, false,
+                          key + "damping_table", c_key, key + "damping_profile");
+    if (damping_rotation_rad != 0.0) {
+      throw InputError(key + "damping_table: a table replaces damping_rotation_deg " +
+                       "(rotate the tabulated matrices instead), give only one");
+    }
+  }
   if (kind == ElementKind::none) return;
-  require_symmetric(stiffness, k_key);
-  require_symmetric(damping, c_key);
-  if (!(min_eigenvalue(stiffness) > 0.0)) {
-    throw InputError(k_key + ": expected a positive definite matrix, got " +
-                     describe(stiffness));
-  }
-  const double damping_floor = kind == ElementKind::poynting_thomson ? 0.0 : -1e-12;
-  if (!(min_eigenvalue(damping) > damping_floor)) {
-    throw InputError(c_key + ": expected a positive " +
-                     std::string(kind == ElementKind::poynting_thomson ? "definite" : "semi-definite") +
-                     " matrix, got " + describe(damping));
-  }
+  const bool pt = kind == ElementKind::poynting_thomson;
+  if (stiffness_table.empty()) require_element_matrix(stiffness, n, true, pt, k_key);
+  if (damping_table.empty()) require_element_matrix(damping, n, false, pt, c_key);
   if (kind == ElementKind::poynting_thomson) {
     require_square(series_stiffness, n, s_key);
     require_symmetric(series_stiffness, s_key);
@@ -212,10 +273,12 @@ Eigen::Matrix2d rotate_damping(const Eigen::Matrix2d& damping, double nu_rad) {
 }
 
 Eigen::MatrixXd stiffness_at(const Viscoelasticity& e, double t_s) {
+  if (!e.stiffness_table.empty()) return e.stiffness_table.at(t_s);
   return e.stiffness * e.stiffness_profile.value(t_s);
 }
 
 Eigen::MatrixXd damping_at(const Viscoelasticity& e, double t_s) {
+  if (!e.damping_table.empty()) return e.damping_table.at(t_s);
   const double u = e.damping_profile.value(t_s);
   if (e.damping_rotation_rad != 0.0 && e.dimension() == 2) {
     return Eigen::MatrixXd(rotate_damping(e.damping, e.damping_rotation_rad)) * u;

@@ -6,10 +6,35 @@
 // n axes of an endpoint model (N/m, N s/m). Forces are generalized forces ON the limb.
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <string>
 #include <vector>
 
 namespace stiffid::models {
+
+/// Piecewise-linear interpolation of the knots (time_s[k], values[k]) (time_s strictly increasing,
+/// one value per time), held constant outside [time_s.front(), time_s.back()]: the value at t_s on
+/// the linear piece that holds at `branch_s` (the integrator passes its segment's midpoint, so that
+/// a step overshooting a knot continues the segment's piece; branch_s = t_s is the plain
+/// interpolation). T is double (the `table` profile) or an Eigen matrix (the matrix tables); this
+/// is the one interpolation of both.
+template <class T>
+T table_interpolate(const std::vector<double>& time_s, const std::vector<T>& values, double t_s,
+                    double branch_s) {
+  if (branch_s < time_s.front() || time_s.size() == 1) return values.front();
+  if (branch_s >= time_s.back()) return values.back();
+  const auto upper = std::upper_bound(time_s.begin(), time_s.end(), branch_s);
+  const std::size_t k = static_cast<std::size_t>(upper - time_s.begin());
+  const double w = (t_s - time_s[k - 1]) / (time_s[k] - time_s[k - 1]);
+  return T((1.0 - w) * values[k - 1] + w * values[k]);
+}
+/// The knots of a table strictly inside (t0_s, t1_s): where the interpolant's derivative jumps,
+/// for the integrator to stop at (none for a one-knot table, a constant).
+std::vector<double> table_breakpoints(const std::vector<double>& time_s, double t0_s, double t1_s);
+/// Throws InputError naming `key` unless `time_s` holds `values` (>= 1) finite, strictly
+/// increasing times ("KEY.time_s: ..." for the times, "KEY: ..." for the count).
+void validate_table_times(const std::vector<double>& time_s, std::size_t values,
+                          const std::string& key);
 
 /// Named time profiles of Piovesan eq 54 (T = horizon_s, 5 s in the paper):
 ///   constant u1 = 1
@@ -48,6 +73,26 @@ struct TimeProfile {
 ProfileKind profile_kind_from_name(const std::string& name, const std::string& key);
 std::string profile_kind_name(ProfileKind kind);
 
+/// A time table of full (n x n) matrices A(t) (stiffness or damping): piecewise-linear
+/// interpolation of every entry between the knots, held constant outside (table_interpolate).
+/// Entries in N m/rad, N m s/rad (joint space) or N/m, N s/m (endpoint). Empty = no table.
+struct MatrixTable {
+  std::vector<double> time_s;          ///< [P] strictly increasing knot times, s
+  std::vector<Eigen::MatrixXd> value;  ///< [P] of (n x n) matrices at those times
+
+  bool empty() const { return time_s.empty() && value.empty(); }
+  int dimension() const { return value.empty() ? 0 : static_cast<int>(value.front().rows()); }
+  /// A(t) (n x n) on the piece that holds at branch_s (see table_interpolate).
+  Eigen::MatrixXd at(double t_s) const { return at(t_s, t_s); }
+  Eigen::MatrixXd at(double t_s, double branch_s) const {
+    return table_interpolate(time_s, value, t_s, branch_s);
+  }
+  /// Interior knots in (t0_s, t1_s), for the integrator to stop at.
+  std::vector<double> breakpoints(double t0_s, double t1_s) const {
+    return table_breakpoints(time_s, t0_s, t1_s);
+  }
+};
+
 /// Where an element acts: joint space (N m/rad, N m s/rad, N m/rad^3) or endpoint space (N/m,
 /// N s/m, N/m^3).
 enum class Space { joint, endpoint };
@@ -67,34 +112,46 @@ std::string element_kind_name(ElementKind kind);
 ///   duffing           f = -C(t) d' - K(t) d - B d.^3  (elementwise cube)      (eq 17)
 ///   poynting_thomson  f = -K_S (d - z),  C_P(t) z' = K_S (d - z) - K_P(t) z   (eq 16)
 /// where K(t) = stiffness * u_K(t), C(t) = R(nu) damping R(nu)^T * u_C(t) (eqs 53, 55; the rotation
-/// only for n = 2), and for Poynting-Thomson K_P = stiffness (the fibre spring, parallel to C_P),
-/// C_P = damping, K_S = series_stiffness (tendon) and z (n) is the internal state: the deviation of
-/// the fibre element. Eliminating z gives eq 16 (with matrix products in place of the scalar ones).
-/// All matrices are (n x n); units are N m/rad, N m s/rad, N m/rad^3 in joint space and N/m, N s/m,
-/// N/m^3 for an endpoint model.
+/// only for n = 2), or, for Kelvin-Voigt and Duffing, K(t) = stiffness_table(t) and/or C(t) =
+/// damping_table(t) (full matrices interpolated in time, for changes that are not a common
+/// factor; a table replaces the matrix, its profile and, for damping, the rotation), and for
+/// Poynting-Thomson K_P = stiffness (the fibre spring, parallel to C_P), C_P = damping, K_S =
+/// series_stiffness (tendon) and z (n) is the internal state: the deviation of the fibre element.
+/// Eliminating z gives eq 16 (with matrix products in place of the scalar ones). All matrices are
+/// (n x n); units are N m/rad, N m s/rad, N m/rad^3 in joint space and N/m, N s/m, N/m^3 for an
+/// endpoint model.
 struct Viscoelasticity {
   ElementKind kind = ElementKind::kelvin_voigt;
-  Eigen::MatrixXd stiffness;          ///< (n x n) K0 (KV, Duffing) or K_P (PT)
-  Eigen::MatrixXd damping;            ///< (n x n) C0 (KV, Duffing) or C_P (PT, must be invertible)
+  Eigen::MatrixXd stiffness;          ///< (n x n) K0 (KV, Duffing) or K_P (PT); empty with a table
+  Eigen::MatrixXd damping;            ///< (n x n) C0 (KV, Duffing) or C_P (PT, must be invertible);
+                                      ///< empty with a table
   Eigen::MatrixXd series_stiffness;   ///< (n x n) K_S (PT only, else empty)
   Eigen::MatrixXd cubic_stiffness;    ///< (n x n) B of eq 17 (Duffing only, else empty)
   TimeProfile stiffness_profile;      ///< u_K(t) multiplying stiffness (K0 or K_P)
   TimeProfile damping_profile;        ///< u_C(t) multiplying damping (C0 or C_P)
   double damping_rotation_rad = 0.0;  ///< nu of eq 55 (n = 2 only)
+  MatrixTable stiffness_table;        ///< K(t) in place of stiffness * u_K(t) (KV, Duffing)
+  MatrixTable damping_table;          ///< C(t) in place of R damping R^T * u_C(t) (KV, Duffing)
 
-  int dimension() const { return static_cast<int>(stiffness.rows()); }
+  int dimension() const {
+    return stiffness.size() || stiffness_table.empty() ? static_cast<int>(stiffness.rows())
+                                                       : stiffness_table.dimension();
+  }
   /// Internal states carried by the integrator: n for Poynting-Thomson, else 0.
   int internal_states() const { return kind == ElementKind::poynting_thomson ? dimension() : 0; }
   /// Throws InputError naming the key under `key` (e.g. "viscoelasticity.stiffness_nm_per_rad")
   /// on a size mismatch, a non-finite entry, a stiffness that is not symmetric positive definite, a
   /// damping that is not symmetric positive semi-definite (positive definite for PT), a negative
-  /// cubic diagonal.
+  /// cubic diagonal; for a table (under KEY.stiffness_table / KEY.damping_table): the matrix or a
+  /// non-constant profile (a rotation, for damping) given as well, an element other than KV or
+  /// Duffing, times that are not finite and strictly increasing, a count of matrices that differs
+  /// from the count of times, and every knot matrix as the constant one above.
   void validate(const std::string& key, Space space = Space::joint) const;
 };
 
-/// K(t) = stiffness * u_K(t), (n x n).
+/// K(t) = stiffness * u_K(t) (or stiffness_table(t)), (n x n).
 Eigen::MatrixXd stiffness_at(const Viscoelasticity& element, double t_s);
-/// C(t) = R(nu) damping R(nu)^T * u_C(t), (n x n), eq 55.
+/// C(t) = R(nu) damping R(nu)^T * u_C(t), (n x n), eq 55 (or damping_table(t)).
 Eigen::MatrixXd damping_at(const Viscoelasticity& element, double t_s);
 /// The rotated damping matrix R(nu) C R(nu)^T of eq 55 (C is 2 x 2; nu in rad).
 Eigen::Matrix2d rotate_damping(const Eigen::Matrix2d& damping, double nu_rad);

@@ -1,16 +1,23 @@
 #!/usr/bin/python3
 """Both `stiffid tfa` methods side by side on stiffid's simulated posture trials.
 
-  scripts/tfa_method_table.py [--stiffid build/stiffid] [--seed 1] [--snr 20,inf]
+  scripts/tfa_method_table.py [--stiffid build/stiffid] [--seed 1 | --seeds 1,2,3] [--snr 20,inf]
                               [--directions 0,45,90,135] [--profiles constant,sigmoid,sharp]
-                              [-o TABLE.md]
+                              [--specs [NAME=]SPEC.json,...] [--summary] [-o TABLE.md]
 
-For every profile (Piovesan's posture specs in models/specs/), impulse direction and SNR (dB; inf
-= noise-free): `stiffid simulate` (the spec's impulse turned to the direction, the given noise
-seed), `stiffid tfa --method modal` and `--method spectrogram` (default options otherwise), and the
-percentage RMS error 100 RMS(est - true) / RMS(true) of k11, k12, k22, c11, c12, c22 over
-2.6-3.175 s and 2.6-4.5 s against the simulator's truth (all frames, valid or not), with the share
-of frames the modal method flags K_valid. Prints a Markdown table (and writes it with -o).
+For every profile (Piovesan's posture specs in models/specs/) or every spec file given with
+--specs (named NAME, or the file name without "piovesan_posture_" and ".json"), impulse direction,
+SNR (dB; inf = noise-free) and noise seed: `stiffid simulate` (the spec's first perturbation, an
+impulse, turned to the direction, the given noise seed), `stiffid tfa --method modal` and `--method
+spectrogram` (default options otherwise), and the percentage RMS error 100 RMS(est - true) /
+RMS(true) of k11, k12, k22, c11, c12, c22 over 2.6-3.175 s and 2.6-4.5 s against the simulator's
+truth (all frames, valid or not), with the share of frames the modal method flags K_valid, and
+the blow-up ratios max |k_ij(t)| / max |k_true_ij(t)| (and the same for C) over the frames in
+2.6-4.5 s (1 when every frame stays within the truth's range) and the share of those frames whose
+largest |k_ij| exceeds 2 x the truth's largest at that frame ("blown"). --summary adds the means
+over seeds per trial, direction and method, and over directions and seeds per trial and method,
+with the count of runs meeting issue 7's targets (k11, k22 <= 10 %, k12 <= 25 % over 2.6-4.5 s,
+no blown K frame). Prints Markdown tables (and writes them with -o).
 Needs numpy (Debian python3-numpy); the tests do not use this script.
 """
 import argparse
@@ -27,6 +34,7 @@ ROOT = os.path.dirname(HERE)
 COEFFICIENTS = [("k11", "K", 0, 0), ("k12", "K", 0, 1), ("k22", "K", 1, 1),
                 ("c11", "C", 0, 0), ("c12", "C", 0, 1), ("c22", "C", 1, 1)]
 INTERVALS = [(2.6, 3.175), (2.6, 4.5)]
+BLOWUP = 2.0  # a frame whose largest |K| (|C|) entry exceeds 2 x the truth's is blown up
 
 
 def run(cmd):
@@ -52,9 +60,21 @@ def errors(tfa, truth):
             bad = ~np.isfinite(e)
             value = 100.0 * np.sqrt(np.mean((e - ref) ** 2) / np.mean(ref ** 2)) if not bad.any() else np.inf
             out[(lo, hi, name)] = value
+    m = (t >= 2.6) & (t <= 4.5)
     if "K_valid" in tfa:
-        m = (t >= 2.6) & (t <= 4.5)
         out["valid"] = 100.0 * np.mean(np.array(tfa["K_valid"])[m])
+    # Blow-ups: the largest estimated entry of any frame against the largest true entry, and the
+    # share of frames whose largest entry exceeds BLOWUP x the largest true entry at that frame.
+    for which in ("K", "C"):
+        e = np.abs(np.array([[est[which][r][c][m] for c in range(2)] for r in range(2)]))
+        ref = np.abs(true[which][(tt >= 2.6) & (tt <= 4.5)])
+        out["blowup_" + which] = np.max(e) / np.max(ref) if np.all(np.isfinite(e)) else np.inf
+        frame_true = np.max(np.abs(np.array([[np.interp(t[m], tt, true[which][:, r, c])
+                                              for c in range(2)] for r in range(2)])), axis=(0, 1))
+        frame_est = np.max(np.where(np.isfinite(e), e, np.inf), axis=(0, 1))
+        out["blown_" + which] = 100.0 * np.mean(frame_est > BLOWUP * frame_true)
+    k = [out[(2.6, 4.5, n)] for n in ("k11", "k22", "k12")]
+    out["meets"] = (k[0] <= 10.0 and k[1] <= 10.0 and k[2] <= 25.0 and out["blown_K"] == 0.0)
     return out
 
 
@@ -64,55 +84,112 @@ def fmt(v):
     return "%.1f" % v if v < 1000 else "%.0e" % v
 
 
+def trials(a):
+    """(name, spec dict) of every trial: --specs files, or the profiles' posture specs."""
+    if a.specs:
+        out = []
+        for item in a.specs.split(","):
+            name, _, path = item.rpartition("=")
+            if not name:
+                name = os.path.basename(path)[:-len(".json")].replace("piovesan_posture_", "")
+            out.append((name, path))
+    else:
+        out = [(profile, os.path.join(ROOT, "models", "specs", "piovesan_posture_%s.json" % profile))
+               for profile in a.profiles.split(",")]
+    return [(name, json.load(open(path))) for name, path in out]
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--stiffid", default=os.path.join(ROOT, "build", "stiffid"))
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--seeds", default="", help="noise seeds, e.g. 1,2,3 (overrides --seed)")
     p.add_argument("--snr", default="20,inf")
     p.add_argument("--directions", default="0,45,90,135")
     p.add_argument("--profiles", default="constant,sigmoid,sharp")
+    p.add_argument("--specs", default="", help="[NAME=]SPEC.json,... instead of --profiles")
+    p.add_argument("--summary", action="store_true", help="add the means over directions and seeds")
     p.add_argument("-o", "--output", default="")
     a = p.parse_args()
-    lines = ["| profile | dir (deg) | SNR | method | " +
-             " | ".join("%s %g-%g" % (n, lo, hi) for lo, hi in INTERVALS for n, *_ in COEFFICIENTS) +
-             " | K_valid % |",
-             "|" + "---|" * (5 + len(INTERVALS) * len(COEFFICIENTS))]
+    seeds = [int(x) for x in a.seeds.split(",")] if a.seeds else [a.seed]
+    columns = ["%s %g-%g" % (n, lo, hi) for lo, hi in INTERVALS for n, *_ in COEFFICIENTS]
+    lines = ["| trial | dir (deg) | SNR | seed | method | " + " | ".join(columns) +
+             " | K_valid % | max|K|/max|K_true| | max|C|/max|C_true| | K blown % | C blown % |",
+             "|" + "---|" * (10 + len(columns))]
+    results = {}  # (trial, snr, method) -> list of error dicts
     with tempfile.TemporaryDirectory() as work:
-        for profile in a.profiles.split(","):
+        for name, base in trials(a):
             for direction in (float(d) for d in a.directions.split(",")):
                 for snr in a.snr.split(","):
-                    spec = json.load(open(os.path.join(ROOT, "models", "specs",
-                                                       "piovesan_posture_%s.json" % profile)))
-                    pulse = spec["perturbations"][0]
-                    pulse.pop("random_octant", None)
-                    pulse.pop("octant", None)
-                    pulse["direction_deg"] = direction
-                    spec["seed"] = a.seed
-                    if snr != "inf":
-                        spec["noise"] = {"snr_db": float(snr)}
-                    spec_path = os.path.join(work, "spec.json")
-                    json.dump(spec, open(spec_path, "w"))
-                    trial, truth = os.path.join(work, "trial.csv"), os.path.join(work, "truth.json")
-                    failure = run([a.stiffid, "simulate", spec_path, "-o", trial, "--truth", truth])
-                    if failure:
-                        sys.exit("simulate failed: " + failure)
-                    truth_json = json.load(open(truth))
-                    for method in ("modal", "spectrogram"):
-                        out = os.path.join(work, "tfa.json")
-                        failure = run([a.stiffid, "tfa", trial, "--angles", "th1,th2", "--onset",
-                                       "2.5", "--method", method, "-o", out])
-                        row = "| %s | %g | %s | %s | " % (profile, direction,
-                                                          "none" if snr == "inf" else snr + " dB",
-                                                          method)
-                        if failure:
-                            row += " | ".join(["failed"] * (len(INTERVALS) * len(COEFFICIENTS))) + " | - |"
+                    for seed in seeds:
+                        spec = json.loads(json.dumps(base))
+                        pulse = spec["perturbations"][0]
+                        pulse.pop("random_octant", None)
+                        pulse.pop("octant", None)
+                        pulse["direction_deg"] = direction
+                        spec["seed"] = seed
+                        if snr != "inf":
+                            spec["noise"] = {"snr_db": float(snr)}
                         else:
-                            e = errors(json.load(open(out)), truth_json)
-                            row += " | ".join(fmt(e[(lo, hi, n)]) for lo, hi in INTERVALS
-                                              for n, *_ in COEFFICIENTS)
-                            row += " | %s |" % (fmt(e["valid"]) if "valid" in e else "-")
-                        lines.append(row)
-                        print(row, flush=True)
+                            spec.pop("noise", None)
+                        spec_path = os.path.join(work, "spec.json")
+                        json.dump(spec, open(spec_path, "w"))
+                        trial = os.path.join(work, "trial.csv")
+                        truth = os.path.join(work, "truth.json")
+                        failure = run([a.stiffid, "simulate", spec_path, "-o", trial, "--truth", truth])
+                        if failure:
+                            sys.exit("simulate failed: " + failure)
+                        truth_json = json.load(open(truth))
+                        snr_text = "none" if snr == "inf" else snr + " dB"
+                        for method in ("modal", "spectrogram"):
+                            out = os.path.join(work, "tfa.json")
+                            failure = run([a.stiffid, "tfa", trial, "--angles", "th1,th2", "--onset",
+                                           "2.5", "--method", method, "-o", out])
+                            row = "| %s | %g | %s | %d | %s | " % (name, direction, snr_text, seed,
+                                                                   method)
+                            if failure:
+                                row += " | ".join(["failed"] * len(columns)) + " | - | - | - | - | - |"
+                                results.setdefault((name, direction, snr_text, method), []).append(None)
+                            else:
+                                e = errors(json.load(open(out)), truth_json)
+                                results.setdefault((name, direction, snr_text, method), []).append(e)
+                                row += " | ".join(fmt(e[(lo, hi, n)]) for lo, hi in INTERVALS
+                                                  for n, *_ in COEFFICIENTS)
+                                row += " | %s | %s | %s | %s | %s |" % (
+                                    fmt(e["valid"]) if "valid" in e else "-",
+                                    "%.2f" % e["blowup_K"], "%.2f" % e["blowup_C"],
+                                    fmt(e["blown_K"]), fmt(e["blown_C"]))
+                            lines.append(row)
+                            print(row, flush=True)
+    if a.summary:
+        for title, by_direction in (("Means over seeds", True), ("Means over directions and seeds", False)):
+            lines += ["", title + " (failed runs counted apart); worst blow-up ratio; runs meeting "
+                      "the issue-7 targets:", "",
+                      "| trial | dir (deg) | SNR | method | runs | " + " | ".join(columns) +
+                      " | K_valid % | worst max|K|/max|K_true| | worst max|C|/max|C_true| | "
+                      "K blown % | runs meeting targets |",
+                      "|" + "---|" * (10 + len(columns))]
+            groups = {}
+            for (name, direction, snr_text, method), runs in results.items():
+                key = (name, direction if by_direction else "all", snr_text, method)
+                groups.setdefault(key, []).extend(runs)
+            for (name, direction, snr_text, method), runs in groups.items():
+                ok = [e for e in runs if e is not None]
+                row = "| %s | %s | %s | %s | %d%s | " % (
+                    name, direction if isinstance(direction, str) else "%g" % direction, snr_text,
+                    method, len(ok), "" if len(ok) == len(runs) else " (+%d failed)" % (len(runs) - len(ok)))
+                if ok:
+                    row += " | ".join(fmt(np.mean([e[(lo, hi, n)] for e in ok]))
+                                      for lo, hi in INTERVALS for n, *_ in COEFFICIENTS)
+                    valid = [e["valid"] for e in ok if "valid" in e]
+                    row += " | %s | %.2f | %.2f | %s | %d / %d |" % (
+                        fmt(np.mean(valid)) if valid else "-", max(e["blowup_K"] for e in ok),
+                        max(e["blowup_C"] for e in ok), fmt(np.mean([e["blown_K"] for e in ok])),
+                        sum(e["meets"] for e in ok), len(runs))
+                else:
+                    row += " | ".join(["failed"] * len(columns)) + " | - | - | - | - | 0 / %d |" % len(runs)
+                lines.append(row)
+                print(row, flush=True)
     text = "\n".join(lines) + "\n"
     if a.output:
         tmp = a.output + ".tmp"

@@ -4,9 +4,13 @@
 Written from the papers, not from the C++ code: the two-link arm of Piovesan et al. 2012 eqs 8-10
 (Table 1 parameters), integrated in ABSOLUTE joint angles (the C++ simulator integrates deviations
 from the reference) with solve_ivp DOP853 at rtol 1e-11, atol 1e-13, split at every discontinuity
-of the force or the profiles.  Also: scipy.signal.butter/sosfilt outputs and lsim (first-order
+of the force or the profiles (and at every knot of a matrix table: the rotating-stiffness case
+reads its tables from arm_posture_rotating_table.json, which this script writes and the C++ test
+reads as its spec).  Also: scipy.signal.butter/sosfilt outputs and lsim (first-order
 hold) of the linear endpoint model.  Run: /usr/bin/python3 make_fixtures.py (writes the CSVs here).
 """
+import json
+
 import numpy as np
 from scipy.integrate import solve_ivp
 from scipy import signal
@@ -121,6 +125,14 @@ def simulate(case):
                 f += r["k"] * (pr + s * u - x) + r["c"] * (prd + sd * u - xd)
         return f
 
+    tables = case.get("tables")
+
+    def table_matrix(table, t):
+        """Entry by entry np.interp of the knots (held constant outside, as np.interp does)."""
+        times, values = np.array(table[0]), np.array(table[1])
+        return np.array([[np.interp(t, times, values[:, i, j]) for j in range(2)]
+                         for i in range(2)])
+
     def rhs(t, y, branch):
         th, w, z = y[0:2], y[2:4], y[4:6]
         thr, wr, ar = reference(task, t)
@@ -135,6 +147,9 @@ def simulate(case):
             zr = np.zeros(2)
         elif kind == "duffing":
             fv = -uc * C0 @ dd - uk * K0 @ d - bcub @ d**3
+            zr = np.zeros(2)
+        elif kind == "kv_table":
+            fv = -table_matrix(tables["damping"], t) @ dd - table_matrix(tables["stiffness"], t) @ d
             zr = np.zeros(2)
         elif kind == "pt":
             fv = -ks @ (d - z)
@@ -152,6 +167,8 @@ def simulate(case):
                 r["onset"] + r["ramp"] + r["plateau"] + r["ret"]}
     if kp != "constant" or cp != "constant":
         bps.add(start)
+    if tables is not None:
+        bps |= set(tables["stiffness"][0]) | set(tables["damping"][0])
     bps = sorted(b for b in bps if 0 <= b <= times[-1])
     th0, w0, _ = reference(task, 0.0)
     y = np.concatenate([th0, w0, np.zeros(2)])
@@ -171,6 +188,45 @@ def simulate(case):
         f = force(t, out[i, 0:2], out[i, 2:4], t + 1e-12)
         fx[i], fy[i] = f
     return times, out, fx, fy
+
+
+def rotating_tables():
+    """K(t) = R(phi) K0 R(phi)^T, phi from 0 to 30 deg along a normalised logistic over 0.2-1 s
+    (knots every 50 ms from 0.2 s), and C(t) = C0 with c22 rising linearly to 3 x from 0.2 s
+    (knots every 73.5 ms, between the 1 kHz samples): neither is a common factor of K0, C0."""
+    tk = 0.2 + 0.05 * np.arange(17)
+    sig = lambda t: 1 / (1 + np.exp(-12 * (t - 0.55)))
+    phi = np.radians(30) * (sig(tk) - sig(0.2)) / (sig(1.0) - sig(0.2))
+    k = []
+    for a in phi:
+        r = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        k.append(r @ K0 @ r.T)
+    tc = 0.2 + 0.0735 * np.arange(11)
+    c = []
+    for t in tc:
+        m = C0.copy()
+        m[1, 1] *= 1 + 2 * (t - 0.2) / (tc[-1] - 0.2)
+        c.append(m)
+    return {"stiffness": (list(tk), [x.tolist() for x in k]),
+            "damping": (list(tc), [x.tolist() for x in c])}
+
+
+def write_table_spec(tables, path):
+    """The C++ side of the rotating-table case, as a stiffid spec (json writes doubles exactly)."""
+    spec = {"model": "arm", "duration_s": 1.0, "sample_rate_hz": 1000.0,
+            "task": {"kind": "posture", "hand_m": [0.4, 0.0]},
+            "viscoelasticity": {
+                "kind": "kelvin_voigt",
+                "stiffness_table": {"time_s": tables["stiffness"][0],
+                                    "stiffness_nm_per_rad": tables["stiffness"][1]},
+                "damping_table": {"time_s": tables["damping"][0],
+                                  "damping_nms_per_rad": tables["damping"][1]}},
+            "perturbations": [{"kind": "impulse", "onset_s": 0.2, "amplitude_n": 5.0,
+                               "duration_s": 0.02, "direction_deg": 135.0}],
+            "integrator": {"absolute_tolerance_rad": 1e-12, "relative_tolerance": 1e-11}}
+    with open(path, "w") as f:
+        json.dump(spec, f, indent=1)
+        f.write("\n")
 
 
 CASES = {
@@ -196,14 +252,26 @@ CASES = {
         fs=1000.0, duration=0.6, task=dict(kind="posture", hand=[0.4, 0.0]), kprof="constant",
         cprof="constant", profile_start=2.5, horizon=5.0, element="pt",
         pulses=[dict(onset=0.1, duration=0.02, amp=5.0, dir=-np.pi / 2)]),
+    "arm_posture_rotating_table": dict(
+        fs=1000.0, duration=1.0, task=dict(kind="posture", hand=[0.4, 0.0]), kprof="constant",
+        cprof="constant", profile_start=2.5, horizon=5.0, element="kv_table",
+        tables=rotating_tables(),
+        pulses=[dict(onset=0.2, duration=0.02, amp=5.0, dir=np.radians(135.0))]),
 }
 
 if __name__ == "__main__":
+    import sys
+    only = sys.argv[1:]  # case names to (re)make; all, with the filters and lsim, when empty
+    write_table_spec(CASES["arm_posture_rotating_table"]["tables"], "arm_posture_rotating_table.json")
     for name, case in CASES.items():
+        if only and name not in only:
+            continue
         t, y, fx, fy = simulate(case)
         data = np.column_stack([t, fx, fy, y[:, 0], y[:, 1]])
         np.savetxt(f"{name}.csv", data, delimiter=",", header="t,fx,fy,th1,th2", comments="",
                    fmt="%.17g")
+    if only:
+        sys.exit(0)
     # Butterworth designs and a filtered test signal.
     n = 400
     k = np.arange(n)
