@@ -330,7 +330,8 @@ void add_tfa_command(CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--track-roughness", o.modes.track_roughness,
                   "modal: prior SD of the second differences of the frequency (rad/s) and decay "
-                  "(1/s) spline coefficients (< 0: chosen by GCV)")
+                  "(1/s) spline coefficients (< 0: chosen from the data by the BIC rule, "
+                  "docs/tfa_modal.md)")
       ->capture_default_str();
   sub->add_option("--shape-weight", o.modes.shape_weight,
                   "modal: weight of the penalty on mode-shape changes (< 0: chosen from the data)")

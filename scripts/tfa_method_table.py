@@ -14,10 +14,13 @@ RMS(true) of k11, k12, k22, c11, c12, c22 over 2.6-3.175 s and 2.6-4.5 s against
 truth (all frames, valid or not), with the share of frames the modal method flags K_valid, and
 the blow-up ratios max |k_ij(t)| / max |k_true_ij(t)| (and the same for C) over the frames in
 2.6-4.5 s (1 when every frame stays within the truth's range) and the share of those frames whose
-largest |k_ij| exceeds 2 x the truth's largest at that frame ("blown"). --summary adds the means
+largest |k_ij| exceeds 2 x the truth's largest at that frame ("blown"), and the share of the
+frames a method vouches for (K_valid for modal, every mode valid for spectrogram) that are blown
+("valid K blown": values returned silently; the summary gives the worst run). --summary adds the means
 over seeds per trial, direction and method, and over directions and seeds per trial and method,
-with the count of runs meeting issue 7's targets (k11, k22 <= 10 %, k12 <= 25 % over 2.6-4.5 s,
-no blown K frame). Prints Markdown tables (and writes them with -o).
+with the count of runs meeting issue 7's targets (--targets K11,K22,K12 in % over 2.6-4.5 s,
+default 10,10,25 for the non-common-factor trials; 15,15,20 for the 10 dB sigmoid case; and no
+blown K frame). Prints Markdown tables (and writes them with -o).
 Needs numpy (Debian python3-numpy); the tests do not use this script.
 """
 import argparse
@@ -34,6 +37,7 @@ ROOT = os.path.dirname(HERE)
 COEFFICIENTS = [("k11", "K", 0, 0), ("k12", "K", 0, 1), ("k22", "K", 1, 1),
                 ("c11", "C", 0, 0), ("c12", "C", 0, 1), ("c22", "C", 1, 1)]
 INTERVALS = [(2.6, 3.175), (2.6, 4.5)]
+TARGETS = [10.0, 10.0, 25.0]  # k11, k22, k12 % over 2.6-4.5 s (--targets)
 BLOWUP = 2.0  # a frame whose largest |K| (|C|) entry exceeds 2 x the truth's is blown up
 
 
@@ -61,8 +65,10 @@ def errors(tfa, truth):
             value = 100.0 * np.sqrt(np.mean((e - ref) ** 2) / np.mean(ref ** 2)) if not bad.any() else np.inf
             out[(lo, hi, name)] = value
     m = (t >= 2.6) & (t <= 4.5)
-    if "K_valid" in tfa:
-        out["valid"] = 100.0 * np.mean(np.array(tfa["K_valid"])[m])
+    # Frames the method vouches for: K_valid (modal), or every mode valid (spectrogram).
+    k_valid = (np.array(tfa["K_valid"], dtype=bool) if "K_valid" in tfa
+               else np.all(np.array(tfa["valid"], dtype=bool), axis=0))
+    out["valid"] = 100.0 * np.mean(k_valid[m])
     # Blow-ups: the largest estimated entry of any frame against the largest true entry, and the
     # share of frames whose largest entry exceeds BLOWUP x the largest true entry at that frame.
     for which in ("K", "C"):
@@ -72,9 +78,14 @@ def errors(tfa, truth):
         frame_true = np.max(np.abs(np.array([[np.interp(t[m], tt, true[which][:, r, c])
                                               for c in range(2)] for r in range(2)])), axis=(0, 1))
         frame_est = np.max(np.where(np.isfinite(e), e, np.inf), axis=(0, 1))
-        out["blown_" + which] = 100.0 * np.mean(frame_est > BLOWUP * frame_true)
+        blown = frame_est > BLOWUP * frame_true
+        out["blown_" + which] = 100.0 * np.mean(blown)
+        # blown frames among those flagged valid: values returned silently
+        out["valid_blown_" + which] = (100.0 * np.mean(blown[k_valid[m]]) if k_valid[m].any()
+                                       else np.nan)
     k = [out[(2.6, 4.5, n)] for n in ("k11", "k22", "k12")]
-    out["meets"] = (k[0] <= 10.0 and k[1] <= 10.0 and k[2] <= 25.0 and out["blown_K"] == 0.0)
+    out["meets"] = (k[0] <= TARGETS[0] and k[1] <= TARGETS[1] and k[2] <= TARGETS[2] and
+                    out["blown_K"] == 0.0)
     return out
 
 
@@ -109,13 +120,20 @@ def main():
     p.add_argument("--profiles", default="constant,sigmoid,sharp")
     p.add_argument("--specs", default="", help="[NAME=]SPEC.json,... instead of --profiles")
     p.add_argument("--summary", action="store_true", help="add the means over directions and seeds")
+    p.add_argument("--targets", default="10,10,25",
+                   help="k11,k22,k12 limits in %% over 2.6-4.5 s for the runs-meeting count")
     p.add_argument("-o", "--output", default="")
     a = p.parse_args()
+    global TARGETS
+    TARGETS = [float(v) for v in a.targets.split(",")]
+    if len(TARGETS) != 3:
+        p.error("--targets: expected three numbers k11,k22,k12 (percent)")
     seeds = [int(x) for x in a.seeds.split(",")] if a.seeds else [a.seed]
     columns = ["%s %g-%g" % (n, lo, hi) for lo, hi in INTERVALS for n, *_ in COEFFICIENTS]
     lines = ["| trial | dir (deg) | SNR | seed | method | " + " | ".join(columns) +
-             " | K_valid % | max|K|/max|K_true| | max|C|/max|C_true| | K blown % | C blown % |",
-             "|" + "---|" * (10 + len(columns))]
+             " | K_valid % | max|K|/max|K_true| | max|C|/max|C_true| | K blown % | C blown % |"
+             " valid K blown % |",
+             "|" + "---|" * (11 + len(columns))]
     results = {}  # (trial, snr, method) -> list of error dicts
     with tempfile.TemporaryDirectory() as work:
         for name, base in trials(a):
@@ -148,17 +166,17 @@ def main():
                             row = "| %s | %g | %s | %d | %s | " % (name, direction, snr_text, seed,
                                                                    method)
                             if failure:
-                                row += " | ".join(["failed"] * len(columns)) + " | - | - | - | - | - |"
+                                row += " | ".join(["failed"] * len(columns)) + " | - | - | - | - | - | - |"
                                 results.setdefault((name, direction, snr_text, method), []).append(None)
                             else:
                                 e = errors(json.load(open(out)), truth_json)
                                 results.setdefault((name, direction, snr_text, method), []).append(e)
                                 row += " | ".join(fmt(e[(lo, hi, n)]) for lo, hi in INTERVALS
                                                   for n, *_ in COEFFICIENTS)
-                                row += " | %s | %s | %s | %s | %s |" % (
-                                    fmt(e["valid"]) if "valid" in e else "-",
-                                    "%.2f" % e["blowup_K"], "%.2f" % e["blowup_C"],
-                                    fmt(e["blown_K"]), fmt(e["blown_C"]))
+                                row += " | %s | %s | %s | %s | %s | %s |" % (
+                                    fmt(e["valid"]), "%.2f" % e["blowup_K"],
+                                    "%.2f" % e["blowup_C"], fmt(e["blown_K"]), fmt(e["blown_C"]),
+                                    fmt(e["valid_blown_K"]))
                             lines.append(row)
                             print(row, flush=True)
     if a.summary:
@@ -167,8 +185,8 @@ def main():
                       "the issue-7 targets:", "",
                       "| trial | dir (deg) | SNR | method | runs | " + " | ".join(columns) +
                       " | K_valid % | worst max|K|/max|K_true| | worst max|C|/max|C_true| | "
-                      "K blown % | runs meeting targets |",
-                      "|" + "---|" * (10 + len(columns))]
+                      "K blown % | valid K blown % | runs meeting targets |",
+                      "|" + "---|" * (11 + len(columns))]
             groups = {}
             for (name, direction, snr_text, method), runs in results.items():
                 key = (name, direction if by_direction else "all", snr_text, method)
@@ -181,13 +199,15 @@ def main():
                 if ok:
                     row += " | ".join(fmt(np.mean([e[(lo, hi, n)] for e in ok]))
                                       for lo, hi in INTERVALS for n, *_ in COEFFICIENTS)
-                    valid = [e["valid"] for e in ok if "valid" in e]
-                    row += " | %s | %.2f | %.2f | %s | %d / %d |" % (
-                        fmt(np.mean(valid)) if valid else "-", max(e["blowup_K"] for e in ok),
+                    silent = [e["valid_blown_K"] for e in ok if np.isfinite(e["valid_blown_K"])]
+                    row += " | %s | %.2f | %.2f | %s | %s | %d / %d |" % (
+                        fmt(np.mean([e["valid"] for e in ok])), max(e["blowup_K"] for e in ok),
                         max(e["blowup_C"] for e in ok), fmt(np.mean([e["blown_K"] for e in ok])),
-                        sum(e["meets"] for e in ok), len(runs))
+                        fmt(max(silent)) if silent else "-", sum(e["meets"] for e in ok),
+                        len(runs))
                 else:
-                    row += " | ".join(["failed"] * len(columns)) + " | - | - | - | - | 0 / %d |" % len(runs)
+                    row += (" | ".join(["failed"] * len(columns)) +
+                            " | - | - | - | - | - | 0 / %d |" % len(runs))
                 lines.append(row)
                 print(row, flush=True)
     text = "\n".join(lines) + "\n"
