@@ -394,7 +394,87 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
   return std::isfinite(cost);
 }
 
+/// Frames whose fitted frequency lies more than outlier_hz from the median of the mode's other
+/// valid fits within +-half_window frames: invalid (a fit that jumped, e.g. onto the other mode,
+/// while its neighbours did not).
+void flag_outliers(RidgeResult& r, int half_window, double outlier_hz) {
+  const int frames = static_cast<int>(r.frequency_hz.rows());
+  const int n = static_cast<int>(r.frequency_hz.cols());
+  Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic> outlier =
+      Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic>::Constant(frames, n, false);
+  std::vector<double> near;
+  for (int j = 0; j < n; ++j) {
+    for (int m = 0; m < frames; ++m) {
+      if (!r.valid(m, j)) continue;
+      near.clear();
+      for (int q = std::max(0, m - half_window); q <= std::min(frames - 1, m + half_window); ++q) {
+        if (r.valid(q, j)) near.push_back(r.frequency_hz(q, j));
+      }
+      auto middle = near.begin() + static_cast<long>(near.size() / 2);
+      std::nth_element(near.begin(), middle, near.end());
+      outlier(m, j) = std::abs(r.frequency_hz(m, j) - *middle) > outlier_hz;
+    }
+  }
+  r.valid = r.valid && !outlier;
+}
+
 }  // namespace
+
+void bridge_invalid_frames(RidgeResult& r) {
+  const int frames = static_cast<int>(r.frequency_hz.rows());
+  const int n = static_cast<int>(r.frequency_hz.cols());
+  for (int j = 0; j < n; ++j) {
+    const int channels = static_cast<int>(r.amplitude_c[j].cols());
+    std::vector<int> good;
+    for (int m = 0; m < frames; ++m) {
+      if (r.valid(m, j)) good.push_back(m);
+    }
+    if (good.empty() || static_cast<int>(good.size()) == frames) continue;
+    auto set = [&](int m, double omega, double alpha, const Eigen::VectorXcd& a) {
+      r.omega_rad_per_s(m, j) = omega;
+      r.frequency_hz(m, j) = omega / (2.0 * M_PI);
+      r.decay_rate_per_s(m, j) = alpha;
+      for (int c = 0; c < channels; ++c) {
+        r.amplitude_c[j](m, c) = a(c);
+        r.amplitude[j](m, c) = std::abs(a(c));
+        r.phase_rad[j](m, c) = std::arg(a(c));
+      }
+    };
+    auto continued = [&](int from, int m) {  // mode of frame `from` carried to frame m
+      const double dt = r.time_s(m) - r.time_s(from);
+      const cd lambda(r.decay_rate_per_s(from, j), r.omega_rad_per_s(from, j));
+      const Eigen::VectorXcd a = r.amplitude_c[j].row(from).transpose() * std::exp(lambda * dt);
+      set(m, lambda.imag(), lambda.real(), a);
+    };
+    for (int m = 0; m < good.front(); ++m) continued(good.front(), m);
+    for (int m = good.back() + 1; m < frames; ++m) continued(good.back(), m);
+    for (size_t g = 0; g + 1 < good.size(); ++g) {
+      const int m0 = good[g], m1 = good[g + 1];
+      if (m1 == m0 + 1) continue;
+      const double t0 = r.time_s(m0), span = r.time_s(m1) - t0;
+      const double w0 = r.omega_rad_per_s(m0, j), w1 = r.omega_rad_per_s(m1, j);
+      const double a0 = r.decay_rate_per_s(m0, j), a1 = r.decay_rate_per_s(m1, j);
+      Eigen::VectorXd mismatch(channels);  // phase at m1 minus the integral of omega, wrapped
+      for (int c = 0; c < channels; ++c) {
+        const double predicted = r.phase_rad[j](m0, c) + 0.5 * (w0 + w1) * span;
+        mismatch(c) = std::remainder(r.phase_rad[j](m1, c) - predicted, 2.0 * M_PI);
+      }
+      for (int m = m0 + 1; m < m1; ++m) {
+        const double u = r.time_s(m) - t0, w = u / span;
+        const double omega = (1.0 - w) * w0 + w * w1;
+        Eigen::VectorXcd a(channels);
+        for (int c = 0; c < channels; ++c) {
+          const double log_a = (1.0 - w) * std::log(r.amplitude[j](m0, c)) +
+                               w * std::log(r.amplitude[j](m1, c));
+          const double phase = r.phase_rad[j](m0, c) + u * (w0 + 0.5 * (omega - w0)) +
+                               w * mismatch(c);
+          a(c) = std::polar(std::exp(log_a), phase);
+        }
+        set(m, omega, (1.0 - w) * a0 + w * a1, a);
+      }
+    }
+  }
+}
 
 RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& options) {
   const int n = options.modes;
@@ -496,6 +576,9 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
       }
     }
   }
+  flag_outliers(r, std::max(1, static_cast<int>(std::lround(0.5 * options.outlier_window_s / sg.hop_s))),
+                options.outlier_hz);
+  if (failed_frames == 0) bridge_invalid_frames(r);
   if (failed_frames > 0) {
     r.status = Status::failure("ridge tracking: " + std::to_string(failed_frames) + " of " +
                                std::to_string(frames) +

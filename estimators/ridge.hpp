@@ -26,6 +26,9 @@ struct RidgeOptions {
   double relaxation = 0.6;             ///< step of each round towards its new estimate, (0, 1]
   double min_mode_separation = 0.01;   ///< validity: modes whose frequencies differ by less than
                                        ///< this fraction of their mean are both invalid (merged)
+  double outlier_window_s = 0.1;       ///< validity: a fit is compared with the median of its
+  double outlier_hz = 0.25;            ///< mode's valid fits within this window, s, and is
+                                       ///< invalid when further than outlier_hz from it, Hz
 };
 
 /// Per-frame description of the modes. With lambda_j = alpha_j + i omega_j, the part of channel k
@@ -42,7 +45,11 @@ struct RidgeResult {
   std::vector<Eigen::MatrixXcd> amplitude_c;  ///< [n] of (T x C) complex amplitudes
   /// (T x n) mode j resolved at frame t: the frame fit converged, its frequency lies inside the
   /// ridge band (a fit that wanders off, e.g. onto a slow real pole at 0 Hz, is not a mode of the
-  /// band) and no other mode's fit is within min_mode_separation of it (two fits on one mode)
+  /// band), no other mode's fit is within min_mode_separation of it (two fits on one mode) and it
+  /// is within outlier_hz of the median of the mode's valid fits around it. The values of an
+  /// invalid frame are bridged from the valid frames around it (omega, alpha and ln A linear,
+  /// the phase along the integral of omega; continued from the nearest valid frame at the ends)
+  /// when every frame resolved, so that stage 4's smoothing does not spread a bad fit.
   Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic> valid;
   Status status;                     ///< failure when a frame could not be resolved
 };
@@ -58,5 +65,13 @@ struct RidgeResult {
 /// of n damped exponentials this recovers frequencies, decay rates and amplitudes exactly.
 /// Throws InputError on options out of range (modes < 1, band without n bins).
 RidgeResult track_ridges(const ReassignedSpectrogram& spectrogram, const RidgeOptions& options);
+
+/// Replaces the values of every invalid frame of a mode (valid(m, j) false) by those bridged from
+/// its valid frames: between two valid frames, omega, alpha and ln A_jk are interpolated linearly
+/// in time and the phase follows the integral of omega (its 2 pi branch matched at both ends);
+/// before the first or after the last valid frame the nearest valid frame's mode is continued
+/// (a exp(lambda dt)). The frames stay invalid. A mode without a valid frame is left as it is.
+/// track_ridges calls it when every frame resolved.
+void bridge_invalid_frames(RidgeResult& ridges);
 
 }  // namespace stiffid::estimators
