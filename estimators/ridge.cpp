@@ -289,7 +289,9 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
         for (int j = 0; j < n; ++j) {
           auto* t = &f.transforms[(i * n + j) * images];
           t[0] = SampledWindow::transform(cut, dt, f.lambda[j] - kI * nu);
-          if (images == 2) t[1] = SampledWindow::transform(cut, dt, std::conj(f.lambda[j]) - kI * nu);
+          if (images == 2) {
+            t[1] = SampledWindow::transform(cut, dt, std::conj(f.lambda[j]) - kI * nu);
+          }
         }
       }
       f.transforms_lo = cut.lo;
@@ -379,10 +381,11 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
     // it (20 dB sigmoid trial: K within 1.1e-6, C 7.8e-6 relative), far below their noise.
     double relative_step = 0.0;
     for (int j = 0; j < n; ++j) {
-      relative_step =
-          std::max(relative_step, std::abs(trial.lambda[j] - fit.lambda[j]) / std::abs(fit.lambda[j]));
+      const double lambda_step =
+          std::abs(trial.lambda[j] - fit.lambda[j]) / std::abs(fit.lambda[j]);
       const double size = fit.coef.row(j).cwiseAbs().maxCoeff();
-      relative_step = std::max(relative_step, (trial.coef.row(j) - fit.coef.row(j)).cwiseAbs().maxCoeff() / size);
+      const double coef_step = (trial.coef.row(j) - fit.coef.row(j)).cwiseAbs().maxCoeff() / size;
+      relative_step = std::max({relative_step, lambda_step, coef_step});
     }
     fit = trial;
     std::swap(residual, trial_residual);
@@ -576,8 +579,9 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
       }
     }
   }
-  flag_outliers(r, std::max(1, static_cast<int>(std::lround(0.5 * options.outlier_window_s / sg.hop_s))),
-                options.outlier_hz);
+  const int outlier_half_window =
+      std::max(1, static_cast<int>(std::lround(0.5 * options.outlier_window_s / sg.hop_s)));
+  flag_outliers(r, outlier_half_window, options.outlier_hz);
   if (failed_frames == 0) bridge_invalid_frames(r);
   if (failed_frames > 0) {
     r.status = Status::failure("ridge tracking: " + std::to_string(failed_frames) + " of " +
