@@ -28,16 +28,22 @@ est::TfSignal damped_cosines(double fs, double duration_s, const std::vector<dou
   return s;
 }
 
+/// The spectrogram of `s` with the paper's 0.75 s Kaiser-3 window, frames 10 ms apart, bins up
+/// to 30 Hz.
+est::ReassignedSpectrogram paper_window_spectrogram(const est::TfSignal& s) {
+  est::ReassignedSpectrogramOptions o;
+  o.window_s = 0.75;
+  o.hop_s = 0.01;
+  o.max_frequency_hz = 30.0;
+  return est::reassigned_spectrogram(s, o);
+}
+
 }  // namespace
 
 BOOST_AUTO_TEST_CASE(single_decaying_cosine_gives_exact_frequency_decay_and_amplitude) {
   const double f = 6.0, alpha = -1.5, a0 = 0.02, phi = 0.4;
   const est::TfSignal s = damped_cosines(1000.0, 4.0, {f}, {alpha}, {a0}, {phi});
-  est::ReassignedSpectrogramOptions o;
-  o.window_s = 0.75;
-  o.hop_s = 0.01;
-  o.max_frequency_hz = 30.0;
-  const est::ReassignedSpectrogram sg = est::reassigned_spectrogram(s, o);
+  const est::ReassignedSpectrogram sg = paper_window_spectrogram(s);
   est::RidgeOptions ro;
   ro.modes = 1;
   const est::RidgeResult r = est::track_ridges(sg, ro);
@@ -162,11 +168,7 @@ BOOST_AUTO_TEST_CASE(ridges_whose_fit_leaves_the_band_or_merges_are_not_valid) {
   // absorbed it; docs/tfa.md, Validity flags.)
   est::TfSignal s = damped_cosines(1000.0, 4.0, {6.0}, {-1.5}, {0.02}, {0.4});
   for (int i = 0; i < s.real.rows(); ++i) s.real(i, 0) += 0.005 * std::exp(-2.0 * i / 1000.0);
-  est::ReassignedSpectrogramOptions o;
-  o.window_s = 0.75;
-  o.hop_s = 0.01;
-  o.max_frequency_hz = 30.0;
-  const est::ReassignedSpectrogram sg = est::reassigned_spectrogram(s, o);
+  const est::ReassignedSpectrogram sg = paper_window_spectrogram(s);
   const est::RidgeResult r =
       est::track_ridges(sg, {.modes = 2, .min_frequency_hz = 0.5, .max_frequency_hz = 30.0});
   BOOST_REQUIRE(r.status.ok);
@@ -194,11 +196,7 @@ BOOST_AUTO_TEST_CASE(invalid_frames_are_bridged_from_their_valid_neighbours) {
   // and ln A are linear in time and the phase follows omega.
   const double f = 6.0, alpha = -1.5, a0 = 0.02, phi = 0.4;
   const est::TfSignal s = damped_cosines(1000.0, 4.0, {f}, {alpha}, {a0}, {phi});
-  est::ReassignedSpectrogramOptions o;
-  o.window_s = 0.75;
-  o.hop_s = 0.01;
-  o.max_frequency_hz = 30.0;
-  const est::ReassignedSpectrogram sg = est::reassigned_spectrogram(s, o);
+  const est::ReassignedSpectrogram sg = paper_window_spectrogram(s);
   est::RidgeResult r = est::track_ridges(sg, {.modes = 1});
   BOOST_REQUIRE(r.status.ok && r.valid.all());
   const est::RidgeResult exact = r;

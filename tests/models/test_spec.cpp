@@ -6,6 +6,7 @@
 
 #include "data/error.hpp"
 #include "models/spec.hpp"
+#include "tests/support/support.hpp"
 
 namespace m = stiffid::models;
 using nlohmann::json;
@@ -20,18 +21,11 @@ json posture() {
     "perturbations": [{"kind": "impulse", "onset_s": 0.5, "direction_deg": 90}]})");
 }
 
+using stiffid::test::mentions;
+
 // The error message of parsing `spec`, or "" when it parses.
 std::string error_of(const json& spec) {
-  try {
-    m::parse_trial_spec(spec, "spec.json");
-  } catch (const stiffid::InputError& e) {
-    return e.what();
-  }
-  return "";
-}
-
-bool mentions(const std::string& message, const std::string& text) {
-  return message.find(text) != std::string::npos;
+  return stiffid::test::input_error_message([&] { m::parse_trial_spec(spec, "spec.json"); });
 }
 
 }  // namespace

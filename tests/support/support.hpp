@@ -1,7 +1,7 @@
 #pragma once
 // Test support shared by the test programs: a scratch folder that is removed when the test ends,
 // whole-file reading that gives "" for a file that is missing (so a failed run reports its own
-// message instead of an exception from the reader), and a check on InputError messages.
+// message instead of an exception from the reader), and checks on InputError messages.
 
 #include <unistd.h>
 
@@ -38,6 +38,23 @@ inline std::string read_text(const std::filesystem::path& path) {
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
+}
+
+/// The message of the InputError `f` throws, or "" when it throws none.
+inline std::string input_error_message(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const stiffid::InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+/// Whether `message` holds `text`; says what it lacks when it does not.
+inline bool mentions(const std::string& message, const std::string& text) {
+  if (message.find(text) != std::string::npos) return true;
+  BOOST_TEST_MESSAGE("\"" << message << "\" does not mention \"" << text << "\"");
+  return false;
 }
 
 /// Checks that `f` throws InputError and that its message holds every one of `parts`.
