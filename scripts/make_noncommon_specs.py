@@ -103,6 +103,17 @@ def write(spec, path):
     os.replace(tmp, path)
 
 
+def tabled_spec(ks, times):
+    """The base spec with K(t) = ks at `times` and C(t) = 0.01 K(t) as matrix tables."""
+    spec = base_spec()
+    v = spec["viscoelasticity"]
+    for k in ("stiffness_nm_per_rad", "damping_nms_per_rad", "stiffness_profile", "damping_profile"):
+        v.pop(k)
+    v["stiffness_table"] = table(times, ks, "stiffness_nm_per_rad")
+    v["damping_table"] = table(times, [0.01 * k for k in ks], "damping_nms_per_rad")
+    return spec
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--grid-s", type=float, default=0.01)
@@ -111,27 +122,13 @@ def main():
     n = int(round((HORIZON_S - START_S) / a.grid_s))
     grid = START_S + a.grid_s * np.arange(n + 1)
 
-    spec = base_spec()
-    v = spec["viscoelasticity"]
-    for k in ("stiffness_nm_per_rad", "damping_nms_per_rad", "stiffness_profile", "damping_profile"):
-        v.pop(k)
-    ks, times = k22_only(grid)
-    v["stiffness_table"] = table(times, ks, "stiffness_nm_per_rad")
-    v["damping_table"] = table(times, [0.01 * k for k in ks], "damping_nms_per_rad")
-    write(spec, os.path.join(a.out_dir, "piovesan_posture_k22_only.json"))
+    write(tabled_spec(*k22_only(grid)), os.path.join(a.out_dir, "piovesan_posture_k22_only.json"))
 
     spec = base_spec()  # K0 u2(t), C0 constant: the existing keys do it
     spec["viscoelasticity"]["damping_profile"] = {"kind": "constant"}
     write(spec, os.path.join(a.out_dir, "piovesan_posture_damping_nonprop.json"))
 
-    spec = base_spec()
-    v = spec["viscoelasticity"]
-    for k in ("stiffness_nm_per_rad", "damping_nms_per_rad", "stiffness_profile", "damping_profile"):
-        v.pop(k)
-    ks, times = rotating(grid)
-    v["stiffness_table"] = table(times, ks, "stiffness_nm_per_rad")
-    v["damping_table"] = table(times, [0.01 * k for k in ks], "damping_nms_per_rad")
-    write(spec, os.path.join(a.out_dir, "piovesan_posture_rotating.json"))
+    write(tabled_spec(*rotating(grid)), os.path.join(a.out_dir, "piovesan_posture_rotating.json"))
 
 
 if __name__ == "__main__":

@@ -32,6 +32,8 @@ import tempfile
 
 import numpy as np
 
+from tfa_cases import fmt, rms_error, set_impulse, set_noise
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 COEFFICIENTS = [("k11", "K", 0, 0), ("k12", "K", 0, 1), ("k22", "K", 1, 1),
@@ -62,7 +64,7 @@ def errors(tfa, truth):
             ref = np.interp(t[m], tt, true[which][:, r, c])
             e = est[which][r][c][m]
             bad = ~np.isfinite(e)
-            value = 100.0 * np.sqrt(np.mean((e - ref) ** 2) / np.mean(ref ** 2)) if not bad.any() else np.inf
+            value = rms_error(e, ref) if not bad.any() else np.inf
             out[(lo, hi, name)] = value
     m = (t >= 2.6) & (t <= 4.5)
     # Frames the method vouches for: K_valid (modal), or every mode valid (spectrogram).
@@ -87,12 +89,6 @@ def errors(tfa, truth):
     out["meets"] = (k[0] <= TARGETS[0] and k[1] <= TARGETS[1] and k[2] <= TARGETS[2] and
                     out["blown_K"] == 0.0)
     return out
-
-
-def fmt(v):
-    if not np.isfinite(v):
-        return "n/a"
-    return "%.1f" % v if v < 1000 else "%.0e" % v
 
 
 def trials(a):
@@ -141,15 +137,9 @@ def main():
                 for snr in a.snr.split(","):
                     for seed in seeds:
                         spec = json.loads(json.dumps(base))
-                        pulse = spec["perturbations"][0]
-                        pulse.pop("random_octant", None)
-                        pulse.pop("octant", None)
-                        pulse["direction_deg"] = direction
+                        set_impulse(spec, direction)
                         spec["seed"] = seed
-                        if snr != "inf":
-                            spec["noise"] = {"snr_db": float(snr)}
-                        else:
-                            spec.pop("noise", None)
+                        set_noise(spec, None if snr == "inf" else float(snr))
                         spec_path = os.path.join(work, "spec.json")
                         json.dump(spec, open(spec_path, "w"))
                         trial = os.path.join(work, "trial.csv")

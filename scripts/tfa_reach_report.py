@@ -66,6 +66,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
 
+from tfa_cases import fmt, rms_error, set_impulse, set_noise
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 SPECS = os.path.join(ROOT, "models", "specs")
@@ -179,20 +181,6 @@ def load_spec(name):
         return json.load(f)
 
 
-def set_impulse(spec, direction_deg):
-    pulse = spec["perturbations"][0]
-    pulse.pop("random_octant", None)
-    pulse.pop("octant", None)
-    pulse["direction_deg"] = direction_deg
-
-
-def set_noise(spec, snr_db):
-    if snr_db is None:
-        spec.pop("noise", None)
-    else:
-        spec["noise"] = {"snr_db": snr_db}
-
-
 class Trial:
     """One simulated trial with its truth and the tfa results of both methods."""
 
@@ -276,21 +264,11 @@ class Trial:
                         axis=1).reshape((t.size,) + x.shape[1:])
 
 
-def rms_error(est, ref):
-    return 100.0 * np.sqrt(np.mean((est - ref)**2) / np.mean(ref**2))
-
-
 def frame_arrays(tfa):
     t = np.array(tfa["t_s"], dtype=float)
     p = np.moveaxis(np.array(tfa["eigenvectors"], dtype=float), 2, 0)   # (T x 2 x 2), columns = modes
     m = np.moveaxis(np.array(tfa["M_kg_m2"], dtype=float), 2, 0)
     return t, p, m
-
-
-def fmt(v):
-    if v is None or not np.isfinite(v):
-        return "n/a"
-    return "%.1f" % v if abs(v) < 1000 else "%.0e" % v
 
 
 # ---------------------------------------------------------------- checks
@@ -342,7 +320,7 @@ def linear_poles(arm, visc, hand=(0.4, 0.0)):
 
 
 def describe_poles(ev):
-    out, seen = [], set()
+    out = []
     for e in ev:
         if e.imag < -1e-9:
             continue
