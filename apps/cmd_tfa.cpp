@@ -211,9 +211,15 @@ void run(TfaCommandOptions cli) {
                            {"track_roughness", r.modes.track_roughness},
                            {"shape_weight_from_data", mo.shape_weight < 0.0},
                            {"track_roughness_from_data", mo.track_roughness < 0.0},
+                           {"decay_tie", r.modes.decay_tie},
+                           {"decay_tie_from_data", mo.decay_tie < 0.0},
                            {"mapping", "state_space"}});
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
     out["converged"] = r.modes.converged;
+    out["iterations"] = r.modes.iterations;
+    std::vector<double> ratios;
+    for (const estimators::ModeTrack& mode : r.modes.modes) ratios.push_back(mode.decay_ratio);
+    out["decay_ratio"] = ratios;
     if (!r.modes.warning.empty()) std::cerr << "stiffid tfa: warning: " << r.modes.warning << '\n';
     const Eigen::MatrixXd& cov = r.modes.noise_covariance;
     nlohmann::json noise = nlohmann::json::array();
@@ -331,6 +337,11 @@ void add_tfa_command(CLI::App& app) {
   sub->add_option("--track-roughness", o.modes.track_roughness,
                   "modal: prior SD of the second differences of the frequency (rad/s) and decay "
                   "(1/s) spline coefficients (< 0: chosen from the data by the BIC rule, "
+                  "docs/tfa_modal.md)")
+      ->capture_default_str();
+  sub->add_option("--decay-tie", o.modes.decay_tie,
+                  "modal: prior SD of the soft tie alpha_j(t) = rho_j alpha_1(t) of the decay "
+                  "tracks, relative (0: no tie; < 0: chosen from the data by the BIC rule, "
                   "docs/tfa_modal.md)")
       ->capture_default_str();
   sub->add_option("--shape-weight", o.modes.shape_weight,

@@ -126,23 +126,37 @@ struct LinearTerm {
   int function;                // column of the time-function matrix
 };
 
+// Soft tie of the decay tracks: the spline coefficients of alpha_j (j > 0) follow rho_j times
+// those of alpha_0 (so alpha_j(t) = rho_j alpha_0(t) when the tie holds exactly), with prior SD
+// sd * scale(j) per coefficient; the ratios rho_j are extra parameters after the tracks' (flat
+// prior). It holds when stiffness and damping change by a common factor (docs/tfa_modal.md).
+struct DecayTie {
+  double sd = 0.0;        // relative prior SD; 0: no tie
+  Eigen::VectorXd scale;  // [n] 1/s, mode j's mean |alpha| at the start of the tie search
+};
+
 // Variable-projection problem for fixed linear terms and shape penalty.
 class VpProblem {
  public:
   VpProblem(const Prepared& p, int modes, const Eigen::MatrixXd& phase_integrals,
             const Eigen::MatrixXd& functions, std::vector<LinearTerm> terms,
             std::vector<std::pair<int, int>> penalized_pairs, double shape_weight,
-            const Eigen::MatrixXd& prior_rows)
+            const Eigen::MatrixXd& prior_rows, DecayTie tie = {})
       : p_(p), modes_(modes), ig_(phase_integrals), f_(functions), terms_(std::move(terms)),
         pairs_(std::move(penalized_pairs)), sqrt_weight_(std::sqrt(shape_weight)),
-        prior_(prior_rows) {}
+        prior_(prior_rows), tie_(std::move(tie)) {}
 
   int basis() const { return static_cast<int>(ig_.cols()); }
-  int parameters() const { return 2 * modes_ * basis(); }
+  int track_parameters() const { return 2 * modes_ * basis(); }
+  int tied_modes() const { return tie_.sd > 0.0 ? modes_ - 1 : 0; }
+  int parameters() const { return track_parameters() + tied_modes(); }
   int linear() const { return 2 * static_cast<int>(terms_.size()); }
   int data_rows() const { return static_cast<int>(p_.yw.size()); }
   int penalty_rows() const { return 2 * static_cast<int>(pairs_.size()); }
-  int residuals() const { return data_rows() + penalty_rows() + static_cast<int>(prior_.rows()); }
+  int tie_rows() const { return tied_modes() * basis(); }
+  int residuals() const {
+    return data_rows() + penalty_rows() + static_cast<int>(prior_.rows()) + tie_rows();
+  }
 
   // exp(Phi_j(tau_i)) for every mode: (N x n); false on overflow.
   bool oscillations(const double* theta, Eigen::MatrixXcd& e) const {
@@ -202,7 +216,13 @@ class VpProblem {
     const Eigen::Map<const Eigen::VectorXd> th(theta, np);
     Eigen::Map<Eigen::VectorXd> r(residuals, residuals_count());
     r.head(rd + rp) = b_ - a * beta;
-    r.tail(prior_.rows()) = prior_ * th;
+    const int rr = static_cast<int>(prior_.rows()), m = basis(), tp = track_parameters();
+    r.segment(rd + rp, rr) = prior_ * th.head(tp);
+    for (int j = 1; j <= tied_modes(); ++j) {
+      const double rho = th(tp + j - 1), inv = 1.0 / (tie_.sd * tie_.scale(j));
+      r.segment(rd + rp + rr + (j - 1) * m, m) =
+          inv * (th.segment(2 * j * m, m) - rho * th.segment(0, m));
+    }
     if (linear_out) *linear_out = beta;
     if (!jacobian) return true;
 
@@ -210,7 +230,6 @@ class VpProblem {
     // whitened contribution Y_j by (integral of B_m) times Y_j (alpha) or i Y_j (omega).
     const int c = static_cast<int>(p_.whiten.rows());
     const int n = static_cast<int>(e.rows());
-    const int m = basis();
     Eigen::MatrixXcd& contribution = contribution_;
     contribution.setZero(n * c, modes_);
     for (size_t t = 0; t < terms_.size(); ++t) {
@@ -244,7 +263,17 @@ class VpProblem {
     d.noalias() -= q_ * qtd_;
     Eigen::Map<RowMajor> jac(jacobian, residuals_count(), np);
     jac.topRows(rd + rp) = -d;
-    jac.bottomRows(prior_.rows()) = prior_;
+    jac.block(rd + rp, 0, rr + tie_rows(), np).setZero();
+    jac.block(rd + rp, 0, rr, tp) = prior_;
+    for (int j = 1; j <= tied_modes(); ++j) {
+      const double rho = th(tp + j - 1), inv = 1.0 / (tie_.sd * tie_.scale(j));
+      for (int q = 0; q < m; ++q) {
+        const int row = rd + rp + rr + (j - 1) * m + q;
+        jac(row, 2 * j * m + q) = inv;
+        jac(row, q) = -rho * inv;
+        jac(row, tp + j - 1) = -inv * th(q);
+      }
+    }
     return true;
   }
 
@@ -259,7 +288,8 @@ class VpProblem {
   std::vector<LinearTerm> terms_;
   std::vector<std::pair<int, int>> pairs_;  // linear terms whose difference is penalized
   double sqrt_weight_;
-  Eigen::MatrixXd prior_;  // (R x P) roughness prior rows
+  Eigen::MatrixXd prior_;  // (R x 2 n M) roughness prior rows on the track coefficients
+  DecayTie tie_;
   // Work buffers of evaluate().
   mutable Eigen::MatrixXcd e_, contribution_;
   mutable Eigen::MatrixXd a_data_, a_penalty_, a_, d_, q_, qtd_;
@@ -549,39 +579,88 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // whitened noise level: on noise-free data the residual is the arm's model error, and with the
   // former 60 dB noise floor tracks rough enough to chase it made every frame fail the
   // frequency-SD validity test (90 deg constant K: K_valid on 0 of 485 frames). Whitened units.
+  //
+  // Decay tie (DecayTie), its prior SD from the data at the chosen roughness along the
+  // continuation loose -> tight, 0.3 .. 0.003 (each fit starting from the previous one): a
+  // tighter tie is taken while the fit it loses stays within what the same rule grants for the
+  // effective parameters it saves, RSS rise <= ln(N) * (saved effective parameters) * s^2. When
+  // the modes' decays do not change by a common factor the RSS rises faster and the search stops
+  // (no tie when even the loosest is refused). A tie leaves fewer effective parameters to each
+  // roughness step, so with a tie the roughness continuation then resumes from the chosen
+  // roughness, rougher fits taken by the same rule.
   std::unique_ptr<VpProblem> stage1;
   StageOutcome outcome;
-  Eigen::VectorXd best_theta = theta;
+  DecayTie tie;
   double previous_rss = std::numeric_limits<double>::infinity();
   double previous_dof = 0.0;
-  for (const double roughness : grid) {
+  // Fits one candidate from `theta`; taken (stage1, theta, outcome, previous_*) when `accept`
+  // says so for its RSS and effective parameters; false when it is not usable or not taken.
+  auto try_candidate = [&](double roughness, const DecayTie& candidate_tie, bool with_dof,
+                           const Eigen::VectorXd& start, auto&& accept) {
     auto problem = std::make_unique<VpProblem>(p, modes, integrals, constant, terms,
                                                std::vector<std::pair<int, int>>{}, 0.0,
-                                               prior_rows(track, modes, roughness));
-    Eigen::VectorXd candidate = theta;
+                                               prior_rows(track, modes, roughness), candidate_tie);
+    Eigen::VectorXd candidate = start;
     const StageOutcome o = solve(*problem, candidate, options.max_iterations);
     result.iterations += o.iterations;
-    if (!o.usable) break;
     double rss = 0.0, dof = 0.0;
-    if (!fit_size(*problem, candidate, grid.size() > 1, rss, dof)) break;
+    if (!o.usable || !fit_size(*problem, candidate, with_dof, rss, dof)) return false;
     const double rows = problem->data_rows();
-    if (stage1) {
-      const double variance = std::max(1.0, rss / std::max(1.0, rows - dof));
-      if (previous_rss - rss <= std::log(rows) * (dof - previous_dof) * variance) break;
-    }
+    const double variance = std::max(1.0, rss / std::max(1.0, rows - dof));
+    if (stage1 && !accept(rss, dof, std::log(rows) * variance)) return false;
     stage1 = std::move(problem);
     outcome = o;
-    result.track_roughness = roughness;
-    best_theta = candidate;
+    theta = candidate;
     previous_rss = rss;
     previous_dof = dof;
-    theta = candidate;  // continuation: the next, rougher fit starts here
+    return true;
+  };
+  auto rougher = [&](double rss, double dof, double price) {
+    return previous_rss - rss > price * (dof - previous_dof);
+  };
+  std::size_t chosen = 0;
+  for (std::size_t g = 0; g < grid.size(); ++g) {
+    if (!try_candidate(grid[g], tie, grid.size() > 1 || options.decay_tie < 0.0, theta, rougher))
+      break;
+    chosen = g;
   }
   if (!stage1) {
     result.status = Status::failure("modal fit: no usable fit even with the smoothest tracks");
     return result;
   }
-  theta = best_theta;
+  result.track_roughness = grid[chosen];
+  if (modes > 1 && options.decay_tie != 0.0) {
+    std::vector<double> tie_grid = {options.decay_tie};
+    if (options.decay_tie < 0.0) tie_grid = {0.3, 0.1, 0.03, 0.01, 0.003};
+    DecayTie candidate_tie;
+    candidate_tie.scale.resize(modes);
+    Eigen::VectorXd tied(theta.size() + modes - 1);
+    tied.head(theta.size()) = theta;
+    for (int j = 0; j < modes; ++j) {
+      candidate_tie.scale(j) = std::max(theta.segment(2 * j * m, m).cwiseAbs().mean(), 1e-3);
+      if (j > 0) {
+        tied(theta.size() + j - 1) = theta.segment(2 * j * m, m).mean() /
+                                     theta.segment(0, m).mean();
+      }
+    }
+    if (!tied.allFinite()) tied.tail(modes - 1).setOnes();
+    auto tighter = [&](double rss, double dof, double price) {
+      return options.decay_tie > 0.0 || rss - previous_rss <= price * (previous_dof - dof);
+    };
+    for (const double sd : tie_grid) {
+      candidate_tie.sd = sd;
+      if (!try_candidate(result.track_roughness, candidate_tie, true, tie.sd > 0.0 ? theta : tied,
+                         tighter)) {
+        break;
+      }
+      tie = candidate_tie;
+    }
+    result.decay_tie = tie.sd;
+    for (std::size_t g = chosen + 1; tie.sd > 0.0 && g < grid.size(); ++g) {
+      if (!try_candidate(grid[g], tie, true, theta, rougher)) break;
+      result.track_roughness = grid[g];
+    }
+  }
   const Eigen::MatrixXd prior = prior_rows(track, modes, result.track_roughness);
   std::unique_ptr<VpProblem> final_problem = std::move(stage1);
 
@@ -613,11 +692,11 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
         }
     }
     auto probe = std::make_unique<VpProblem>(p, modes, integrals, functions, varying, pairs, 1.0,
-                                             prior);
+                                             prior, tie);
     const double weight =
         options.shape_weight >= 0.0 ? options.shape_weight : choose_shape_weight(*probe, theta, p);
     auto stage2 = std::make_unique<VpProblem>(p, modes, integrals, functions, varying, pairs,
-                                              weight, prior);
+                                              weight, prior, tie);
     Eigen::VectorXd theta2 = theta;
     const StageOutcome outcome2 = solve(*stage2, theta2, options.max_iterations);
     result.iterations += outcome2.iterations;
@@ -671,6 +750,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     ModeTrack mt;
     const Eigen::VectorXd ca = theta.segment(2 * j * m, m), cw = theta.segment((2 * j + 1) * m, m);
     mt.alpha_per_s = values * ca;
+    if (j > 0 && tie.sd > 0.0) mt.decay_ratio = theta(2 * modes * m + j - 1);
     mt.omega_rad_per_s = values * cw;
     mt.alpha_dot_per_s2 = slopes * ca;
     mt.omega_dot_rad_per_s2 = slopes * cw;

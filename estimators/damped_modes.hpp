@@ -40,6 +40,12 @@ struct DampedModesOptions {
                                         ///< data over 0.003 .. 3 (continuation smooth -> rough),
                                         ///< rougher only while the BIC rule accepts the extra
                                         ///< effective parameters (docs/tfa_modal.md)
+  double decay_tie = -1.0;              ///< soft tie of the decay tracks, alpha_j(t) = rho_j
+                                        ///< alpha_1(t) with rho_j fitted: prior SD of the
+                                        ///< difference, relative to mode j's mean decay
+                                        ///< (dimensionless); 0: no tie; < 0: from the data over
+                                        ///< 0.3 .. 0.003 (loose -> tight), tighter only while the
+                                        ///< BIC rule accepts the lost fit (docs/tfa_modal.md)
   double init_window_s = 0.5;           ///< sliding matrix-pencil windows for the start, s
   double anr_threshold_db = 0.0;        ///< validity: amplitude-to-noise ratio at least this, dB
   double max_frequency_sd_hz = 0.1;     ///< validity: posterior SD of f_j(t) at most this, Hz
@@ -69,6 +75,9 @@ struct ModeTrack {
   Eigen::VectorXd anr_db;                  ///< [T] amplitude-to-noise ratio, dB (docs/tfa_modal.md)
   Eigen::VectorXd frequency_sd_hz;         ///< [T] posterior SD of f_j, Hz
   Eigen::VectorXd alpha_sd_per_s;          ///< [T] posterior SD of alpha_j, 1/s
+  double decay_ratio = 1.0;                ///< rho_j of the decay tie: alpha_j(t) ~ rho_j times
+                                           ///< the reference mode's (the start's lowest
+                                           ///< frequency, ratio 1); 1 without a tie
   Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] fit converged; ANR, frequency SD, mode-to-
                                                 ///< data power and separation within limits
 };
@@ -87,6 +96,7 @@ struct DampedModesResult {
   MatrixPencilResult start;         ///< global matrix pencil over the fitted samples
   double shape_weight = 0.0;        ///< shape-change penalty used
   double track_roughness = 0.0;     ///< track roughness prior SD used, rad/s and 1/s
+  double decay_tie = 0.0;           ///< decay-tie prior SD used (relative); 0: none
   double residual_rms_whitened = 0.0;  ///< RMS whitened data residual (1 = noise level)
   int iterations = 0;               ///< Levenberg-Marquardt iterations, all stages
 };

@@ -172,10 +172,10 @@ BOOST_AUTO_TEST_CASE(close_modes_with_a_weak_one_at_20_db_within_one_percent) {
   for (int j = 0; j < 2; ++j) {
     // Issue 7 target for the frequencies: 1 % (RMS relative error over 2.6-4.5 s). The decay rates
     // are held to their posterior SD instead (RMS of error / SD <= 2.5; 1 when calibrated, the
-    // margin for the noise covariance from 0.155 s of pre-onset data, +-20 % in variance): with
-    // alpha free to vary every 0.1 s, the weak mode's decay at 20 dB is known to only ~2-4 % (the
-    // Cramer-Rao bound of a constant decay over the record is already 0.3 %), see
-    // docs/tfa_modal.md; the 1 % target is reported there, not met without a mode tie.
+    // margin for the noise covariance from 0.155 s of pre-onset data, +-20 % in variance): the
+    // 1 % target is NOT met (docs/tfa_modal.md). Untied, the weak mode's decay is off by 3.6 %
+    // (the strong one's 1.0 %); with the decay tie the data choose (0.003) both are off by 1.9 %,
+    // the bias of the roughness prior the BIC rule picks (0.01; at 0.03, 0.3-0.4 %).
     const Errors e = track_errors(r, j, modes[j], 2.6, 4.5);
     BOOST_TEST_MESSAGE("mode " << j << ": f " << e.f_rel << ", alpha " << e.alpha_rel
                                << ", alpha error / SD " << e.alpha_z << ", valid " << e.valid
@@ -189,6 +189,55 @@ BOOST_AUTO_TEST_CASE(close_modes_with_a_weak_one_at_20_db_within_one_percent) {
   // Same seed, same bits (deterministic fit).
   const DampedModesResult again = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
   BOOST_CHECK(again.modes[1].alpha_per_s == r.modes[1].alpha_per_s);
+}
+
+BOOST_AUTO_TEST_CASE(decay_tie_is_taken_for_a_common_factor_and_refused_otherwise) {
+  // Tied truth: both decays follow the same sigmoid, alpha_2 / alpha_1 = 1.3 throughout (the
+  // case above). The tie is taken and its ratio recovered; it must not cost the frequencies.
+  {
+    const std::vector<ClosedFormMode> modes = close_modes(0.26);
+    Eigen::MatrixXd x = response(modes);
+    add_noise(x, 20.0, 7);
+    const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+    BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+    BOOST_TEST_MESSAGE("tied truth: tie SD " << r.decay_tie << ", ratio "
+                                             << r.modes[1].decay_ratio);
+    BOOST_CHECK_GT(r.decay_tie, 0.0);
+    BOOST_CHECK_EQUAL(r.modes[0].decay_ratio, 1.0);
+    BOOST_CHECK_CLOSE(r.modes[1].decay_ratio, 1.3, 3.0);  // percent
+    for (int j = 0; j < 2; ++j) {
+      BOOST_CHECK_SMALL(track_errors(r, j, modes[j], 2.6, 4.5).f_rel, 0.01);
+    }
+    // Without the tie the fit is the untied one of the previous test's design.
+    DampedModesOptions untied;
+    untied.decay_tie = 0.0;
+    const DampedModesResult u = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, untied);
+    BOOST_CHECK_EQUAL(u.decay_tie, 0.0);
+    BOOST_CHECK_EQUAL(u.modes[1].decay_ratio, 1.0);
+  }
+  // Untied truth: the 3.4 Hz mode (a quarter of the energy) keeps its decay while the 2.4 Hz
+  // mode's doubles. The data contradict any tie: it is refused, or so loose that each decay
+  // stays within its posterior SD of the truth.
+  {
+    std::vector<ClosedFormMode> modes = close_modes(0.8);
+    modes[1].alpha_per_s = [](double) { return -1.3; };
+    modes[1].phi = [](double tau) {
+      return std::complex<double>(-1.3 * tau, 2.0 * M_PI * 3.4 * tau);
+    };
+    Eigen::MatrixXd x = response(modes);
+    add_noise(x, 20.0, 11);
+    const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+    BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+    BOOST_TEST_MESSAGE("untied truth: energy of mode 2 " << energy_fraction(modes, 1)
+                                                         << ", tie SD " << r.decay_tie);
+    BOOST_CHECK(r.decay_tie == 0.0 || r.decay_tie >= 0.1);
+    for (int j = 0; j < 2; ++j) {
+      const Errors e = track_errors(r, j, modes[j], 2.6, 4.5);
+      BOOST_TEST_MESSAGE("mode " << j << ": alpha " << e.alpha_rel << ", error / SD "
+                                 << e.alpha_z);
+      BOOST_CHECK_SMALL(e.alpha_z, 2.5);
+    }
+  }
 }
 
 BOOST_AUTO_TEST_CASE(a_mode_sinking_into_the_noise_is_flagged_invalid) {

@@ -63,9 +63,15 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   for (const char* key : {"t_s", "f_hz", "amplitude", "alpha_per_s", "gamma_per_s",
                           "eta_squared_per_s2", "K_nm_per_rad", "C_nms_per_rad", "eigenvectors",
                           "normalized_force", "options", "valid", "anr_db", "K_valid",
-                          "noise_covariance_rad2", "residual_rms_whitened"}) {
+                          "noise_covariance_rad2", "residual_rms_whitened", "iterations",
+                          "decay_ratio"}) {
     BOOST_CHECK_MESSAGE(j.contains(key), key);
   }
+  for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "shape_weight"}) {
+    BOOST_CHECK_MESSAGE(j["options"].contains(key), key);
+  }
+  BOOST_CHECK_EQUAL(j["decay_ratio"].size(), 2u);
+  BOOST_CHECK_EQUAL(j["decay_ratio"][0].get<double>(), 1.0);  // the reference mode
   const size_t frames = j["t_s"].size();
   BOOST_CHECK_GT(frames, 400u);  // ~2.4 s of free response at 200 Hz
   BOOST_CHECK_CLOSE(j["options"]["decimate_hz"].get<double>(), 200.0, 1e-12);

@@ -8,6 +8,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <tuple>
 
 #include "estimators/tfa.hpp"
 #include "models/presets.hpp"
@@ -88,9 +89,9 @@ BOOST_AUTO_TEST_CASE(constant_and_sigmoid_stiffness_at_20_db_three_noise_seeds) 
   // Issue 7's targets at 20 dB: over 2.6-3.175 s k11 <= 5 %, k12 <= 10 %, k22 <= 5 %; over
   // 2.6-4.5 s k11 <= 7.5 %, k12 <= 10 %, k22 <= 10 %, c11 <= 30 %, c12 and c22 <= 35 %.
   // Checked here where they hold for every noise seed 1-3: the direct terms k11, k22, c11, c22 at
-  // 90 and 135 degrees. NOT met, so only printed: k12 (up to 13 % at 90 degrees, seed 2), c12 (up
-  // to 55 %), and everything at 45 degrees, where the second mode is weak and the roughness rule
-  // can return rough tracks (k12 30-360 %); see docs/tfa_modal.md, "Limits".
+  // 90 and 135 degrees. NOT met, so only printed: k12 (up to 9 % at 90 degrees, seed 2), c12 (up
+  // to 37 %), and everything at 45 degrees, where the second mode is weak (k12 1.5-17 %, and the
+  // constant-K trial of seed 2 lost: k12 365 %); see docs/tfa_modal.md, "Limits".
   for (const m::ProfileKind profile : {m::ProfileKind::constant, m::ProfileKind::sigmoid}) {
     for (const double direction : {45.0, 90.0, 135.0}) {
       for (const unsigned seed : {1u, 2u, 3u}) {
@@ -106,11 +107,20 @@ BOOST_AUTO_TEST_CASE(constant_and_sigmoid_stiffness_at_20_db_three_noise_seeds) 
         BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
         BOOST_CHECK_LE(percent_rms_error(c, true, 0, 0, 2.6, 4.5), 30.0);
         BOOST_CHECK_LE(percent_rms_error(c, true, 1, 1, 2.6, 4.5), 35.0);
-        // Per-mode validity is reported; the strong mode is valid over the whole fit, and K(t)
-        // on at least 90 % of 2.6-4.5 s (the validity checks do not reject good fits).
-        Eigen::Index valid = 0;
-        for (const auto& track : c.tfa.modes.modes) valid = std::max(valid, track.valid.count());
-        BOOST_CHECK_EQUAL(valid, c.tfa.modes.t_s.size());
+        // Per-mode validity is reported; the strong mode is valid over all of 2.6-4.5 s (the last
+        // frames of the record, where the splines end, may not be), and K(t) on at least 90 % of
+        // it (the validity checks do not reject good fits).
+        int frames = 0, valid = 0;
+        for (const auto& track : c.tfa.modes.modes) {
+          int n = 0, v = 0;
+          for (Eigen::Index i = 0; i < c.tfa.modes.t_s.size(); ++i) {
+            if (c.tfa.modes.t_s(i) < 2.6 || c.tfa.modes.t_s(i) > 4.5) continue;
+            ++n;
+            v += track.valid(i) ? 1 : 0;
+          }
+          if (v >= valid) std::tie(frames, valid) = std::pair{n, v};
+        }
+        BOOST_CHECK_EQUAL(valid, frames);
         BOOST_CHECK_GE(k_valid_share(c, 2.6, 4.5), 0.9);
       }
     }
