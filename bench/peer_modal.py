@@ -14,27 +14,38 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
   - uniform cubic B-spline tracks omega_j, alpha_j (knots 0.1 s) with closed-form running
     integrals (cubic_bspline.cpp);
   - variable projection with Kaufman's Jacobian, minimized by Levenberg-Marquardt, along the
-    roughness continuation 0.003 .. 3 with the BIC rule; stage 2 with slowly varying mode shapes
-    (knots 0.5 s, orthogonal to the stage-1 shapes, first-difference penalty whose weight GCV
-    chooses over 1e-3 .. 1e6); posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including
-    the mode-to-data power and separation checks (damped_modes.cpp);
+    roughness continuation 0.003 .. 3 with the BIC rule;
+  - the decay tie (more than one mode): a Gaussian prior on (c_alpha_j - rho_j c_alpha_0) /
+    (sd scale_j) for every decay-spline coefficient of the modes j > 0, scale_j = mode j's mean
+    |c_alpha_j| at the untied fit (at least 1e-3), the ratios rho_j extra parameters (flat
+    prior) after the tracks'; its sd along 0.3 .. 0.003, each fit from the previous one, tighter
+    while the RSS rise stays within ln(N) x saved effective dof x s^2; with a tie the roughness
+    continuation then resumes from the chosen roughness by the same rule as before;
+  - stage 2 with slowly varying mode shapes (knots 0.5 s, orthogonal to the stage-1 shapes,
+    first-difference penalty whose weight GCV chooses over 1e-3 .. 1e6; the tie rows kept);
+    posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including the mode-to-data power and
+    separation checks (damped_modes.cpp);
   - eqs 45-46 and the state-space mapping to K(t), C(t), P(t) (modal_parameters.cpp), the
     per-time modal quantities and eq 49's normalized force (tfa.cpp, normalized_force.cpp);
-  - JSON with the keys of `stiffid tfa` (apps/cmd_tfa.cpp), plus "iterations": the residual
-    evaluations of all Levenberg-Marquardt stages.
+  - JSON with the keys of `stiffid tfa` (apps/cmd_tfa.cpp), decay_ratio (rho_j per output mode,
+    1 for the reference mode and without a tie) and options.decay_tie (the sd used, 0: none)
+    included; "iterations" counts MINPACK's residual evaluations of all stages where the C++
+    code counts Ceres's iterations (the same notion, trial steps, not the same numbers).
 
 Deliberate differences from the C++ code:
   - the Levenberg-Marquardt is MINPACK's (scipy.optimize.least_squares, method "lm", Jacobian
     column scaling as Ceres's Jacobi scaling, ftol = xtol = 1e-10, gtol = 1e-12, at most
-    max_iterations + 1 evaluations, as Ceres counts one iteration per trial step), not Ceres's:
-    the two take different steps and stop by slightly different rules, so the optimum agrees to
-    the tolerance, not to round-off. A trial point the model cannot evaluate (overflow) gets huge
-    residuals, so that MINPACK rejects it as Ceres does;
-  - the matrix pencil takes V from the SVD of the Hankel matrix's triangular QR factor (the same
-    V; numpy's SVD would also form U, which Eigen's BDCSVD with ComputeThinV skips);
-  - the Kaufman projection uses the explicit thin Q of a pivoted QR (scipy.linalg.qr) instead of
-    applying the Householder reflectors; pseudo-inverses are SVD-based (numpy lstsq / pinv) where
-    Eigen uses a complete orthogonal decomposition: the same values for full-rank matrices;
+    max_iterations + 1 evaluations, as Ceres counts one iteration per trial step), not Ceres's
+    (which solves the normal equations, DENSE_NORMAL_CHOLESKY, where MINPACK takes a QR of the
+    Jacobian): the two take different steps and stop by slightly different rules, so the
+    optimum agrees to the tolerance, not to round-off. A trial point the model cannot evaluate
+    (overflow) gets huge residuals, so that MINPACK rejects it as Ceres does;
+  - the matrix pencil takes V from the SVD of the Hankel matrix's triangular QR factor, the C++
+    code from the eigenvectors of the Hankel Gram matrix H^T H (the same signal subspace);
+  - the effective dof is tr(N^-1 Jd^T Jd) by a symmetric solve where the C++ code takes
+    P - tr(N^-1 Jp^T Jp) by an LDLT (equal up to round-off); pseudo-inverses are SVD-based
+    (numpy lstsq / pinv) where Eigen uses a complete orthogonal decomposition: the same values
+    for full-rank matrices;
   - K(t) positive definite is tested by its eigenvalues instead of a Cholesky factorization.
 
     python3 peer_modal.py TRIAL.csv --onset 2.5 [--angles th1,th2] [-o OUT.json]
@@ -55,10 +66,12 @@ from peer_tfa import ARM, inertia, make_trial
 # Defaults of DampedModesOptions / DeviationOptions (estimators/damped_modes.hpp, tfa_deviation.hpp).
 OPTIONS = dict(decimate_hz=200.0, skip_s=0.025, noise_window_s=1.0, knot_spacing_s=0.1,
                shape_knot_spacing_s=0.5, shape_weight=-1.0, track_roughness=-1.0,
-               init_window_s=0.5, anr_threshold_db=0.0, max_frequency_sd_hz=0.1,
-               max_mode_to_data_db=20.0, min_mode_separation=0.01, max_iterations=100)
+               decay_tie=-1.0, init_window_s=0.5, anr_threshold_db=0.0,
+               max_frequency_sd_hz=0.1, max_mode_to_data_db=20.0, min_mode_separation=0.01,
+               max_iterations=100)
 PRE_ONSET_S, PULSE_S = 0.2, 0.02
 ROUGHNESS_GRID = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
+TIE_GRID = (0.3, 0.1, 0.03, 0.01, 0.003)
 
 
 def lround(x):
@@ -207,12 +220,22 @@ def prepare(x, rate_hz, start_s, onset_s, o):
     return p
 
 
+class DecayTie:
+    """Soft tie of the decay tracks: c_alpha_j follows rho_j c_alpha_0 (j > 0) with prior SD
+    sd * scale[j] per coefficient; sd 0: no tie."""
+
+    def __init__(self, sd=0.0, scale=None):
+        self.sd, self.scale = sd, scale
+
+
 class VpProblem:
     """Variable projection for fixed linear terms (mode, whitened direction [C], time function),
-    penalized pairs of linear terms (weight) and roughness prior rows (R x P)."""
+    penalized pairs of linear terms (weight), roughness prior rows (R x 2 n M) and the decay tie.
+    theta: the track coefficients [alpha_0, omega_0, alpha_1, ...] (M each), then rho_1 ..
+    rho_{n-1} when tied."""
 
-    def __init__(self, p, modes, ig, functions, terms, pairs, weight, prior):
-        self.p, self.modes, self.ig, self.prior = p, modes, ig, prior
+    def __init__(self, p, modes, ig, functions, terms, pairs, weight, prior, tie=DecayTie()):
+        self.p, self.modes, self.ig, self.prior, self.tie = p, modes, ig, prior, tie
         self.n, self.c = p["y"].shape
         self.m = ig.shape[1]
         self.igr = np.repeat(ig, self.c, axis=0)  # (N C x M)
@@ -223,7 +246,9 @@ class VpProblem:
         self.mode_onehot = (self.t_modes[:, None] == np.arange(modes)[None, :]).astype(float)
         self.rd = self.n * self.c
         self.nl = 2 * len(terms)
-        self.np = 2 * modes * self.m
+        self.tp = 2 * modes * self.m  # track parameters
+        self.tied = modes - 1 if tie.sd > 0 else 0
+        self.np = self.tp + self.tied
         pen = np.zeros((2 * len(pairs), self.nl))
         for q, (a, b) in enumerate(pairs):
             for part in range(2):
@@ -233,7 +258,8 @@ class VpProblem:
         self.sqrt_weight = math.sqrt(weight)
         self.rp = pen.shape[0]
         self.b = np.concatenate([p["yw"], np.zeros(self.rp)])
-        self.residuals = self.rd + self.rp + prior.shape[0]
+        self.rr = prior.shape[0]
+        self.residuals = self.rd + self.rp + self.rr + self.tied * self.m
         self._key = None
 
     def function_columns(self, mode):
@@ -241,7 +267,7 @@ class VpProblem:
         return [t[2] for t in self.terms if t[0] == mode]
 
     def oscillations(self, theta):
-        th = theta.reshape(self.modes, 2, self.m)
+        th = theta[:self.tp].reshape(self.modes, 2, self.m)
         re = self.ig @ th[:, 0, :].T
         im = self.ig @ th[:, 1, :].T
         if not (np.isfinite(re).all() and np.isfinite(im).all()) or np.abs(re).max() > 600.0:
@@ -277,8 +303,15 @@ class VpProblem:
             self._ok = False
             return False
         self.e, self.beta, self.q = e, beta, q[:, :rank]
-        self.resid = np.concatenate([self.b - a @ beta, self.prior @ theta])
+        self.resid = np.concatenate([self.b - a @ beta, self.prior @ theta[:self.tp],
+                                     self.tie_residual(theta)])
         return True
+
+    def tie_residual(self, theta):
+        m, ca0 = self.m, theta[:self.m]
+        rows = [(theta[2 * j * m:(2 * j + 1) * m] - theta[self.tp + j - 1] * ca0)
+                / (self.tie.sd * self.tie.scale[j]) for j in range(1, self.tied + 1)]
+        return np.concatenate(rows) if rows else np.zeros(0)
 
     def residual(self, theta):
         if not self.evaluate(theta):
@@ -286,7 +319,8 @@ class VpProblem:
         return self.resid
 
     def jacobian(self, theta):
-        """Kaufman: [-(I - Q Q^T) D; prior], D = d(A beta)/d theta at fixed beta."""
+        """Kaufman: [-(I - Q Q^T) D; prior; tie], D = d(A beta)/d theta at fixed beta (zero in
+        the rho columns)."""
         if not self.evaluate(theta):
             return np.zeros((self.residuals, self.np))
         coef = self.beta[0::2] + 1j * self.beta[1::2]
@@ -294,11 +328,20 @@ class VpProblem:
         y = (v[:, None, :] * self.t_dirs[None, :, :]) @ self.mode_onehot  # (N, C, modes)
         y = y.reshape(self.rd, self.modes)
         d = np.zeros((self.rd + self.rp, self.np))
-        blocks = d[:self.rd].reshape(self.rd, self.modes, 2, self.m)
+        blocks = d[:self.rd, :self.tp].reshape(self.rd, self.modes, 2, self.m)
         blocks[:, :, 0, :] = self.igr[:, None, :] * y.real[:, :, None]
         blocks[:, :, 1, :] = -self.igr[:, None, :] * y.imag[:, :, None]
-        d -= self.q @ (self.q.T @ d)
-        return np.vstack([-d, self.prior])
+        d[:, :self.tp] -= self.q @ (self.q.T @ d[:, :self.tp])
+        m = self.m
+        tie = np.zeros((self.tied * m, self.np))
+        for j in range(1, self.tied + 1):
+            inv = 1.0 / (self.tie.sd * self.tie.scale[j])
+            rows = slice((j - 1) * m, j * m)
+            tie[rows, 2 * j * m:(2 * j + 1) * m] = inv * np.eye(m)
+            tie[rows, :m] = -theta[self.tp + j - 1] * inv * np.eye(m)
+            tie[rows, self.tp + j - 1] = -inv * theta[:m]
+        prior = np.hstack([self.prior, np.zeros((self.rr, self.tied))])
+        return np.vstack([-d, prior, tie])
 
 
 def solve(problem, theta, max_iterations):
@@ -396,7 +439,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     p = prepare(x, rate_hz, start_s, onset_s, o)
     n, c = p["y"].shape
     res = dict(t_s=p["t_s"], rate_hz=p["rate_hz"], noise_cov=p["noise_cov"], data=p["y"],
-               shape_weight=0.0, track_roughness=0.0, iterations=0)
+               shape_weight=0.0, track_roughness=0.0, decay_tie=0.0, iterations=0)
     start = matrix_pencil(p["y"], p["rate_hz"], modes)
     if start is None:
         raise SystemExit("modal fit: no start")
@@ -408,31 +451,65 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     terms = [(j, np.eye(c)[k].astype(complex), 0) for j in range(modes) for k in range(c)]
     constant = np.ones((n, 1))
     grid = ROUGHNESS_GRID if o["track_roughness"] < 0 else (o["track_roughness"],)
-    stage1, converged = None, False
-    best_theta, previous_rss, previous_dof = theta, np.inf, 0.0
-    for roughness in grid:
-        problem = VpProblem(p, modes, ig, constant, terms, [], 0.0, prior_rows(track, modes, roughness))
-        candidate, usable, conv, nfev = solve(problem, theta, o["max_iterations"])
+    # The accepted fit: its problem, theta, convergence, RSS and effective dof.
+    fit = dict(problem=None, theta=theta, converged=False, rss=np.inf, dof=0.0)
+
+    def try_candidate(roughness, tie, with_dof, start, accept):
+        """Fits one candidate from start; taken (fit) when accept(rss, dof, price) says so;
+        False when it is not usable or not taken."""
+        problem = VpProblem(p, modes, ig, constant, terms, [], 0.0,
+                            prior_rows(track, modes, roughness), tie)
+        candidate, usable, conv, nfev = solve(problem, start, o["max_iterations"])
         res["iterations"] += nfev
-        if not usable:
-            break
-        size = fit_size(problem, candidate, len(grid) > 1)
+        size = fit_size(problem, candidate, with_dof) if usable else None
         if size is None:
-            break
+            return False
         rss, dof = size
         rows = problem.rd
-        if stage1 is not None:
-            variance = max(1.0, rss / max(1.0, rows - dof))
-            if previous_rss - rss <= math.log(rows) * (dof - previous_dof) * variance:
-                break
-        stage1, converged, res["track_roughness"] = problem, conv, roughness
-        best_theta, previous_rss, previous_dof = candidate, rss, dof
-        theta = candidate
-    if stage1 is None:
+        variance = max(1.0, rss / max(1.0, rows - dof))
+        if fit["problem"] is not None and not accept(rss, dof, math.log(rows) * variance):
+            return False
+        fit.update(problem=problem, theta=candidate, converged=conv, rss=rss, dof=dof)
+        return True
+
+    def rougher(rss, dof, price):  # BIC: the RSS drop pays for the added effective dof
+        return fit["rss"] - rss > price * (dof - fit["dof"])
+
+    def tighter(rss, dof, price):  # BIC: the RSS rise stays within the saved effective dof
+        return o["decay_tie"] > 0 or rss - fit["rss"] <= price * (fit["dof"] - dof)
+
+    tie, chosen = DecayTie(), 0
+    for g, roughness in enumerate(grid):
+        if not try_candidate(roughness, tie, len(grid) > 1 or o["decay_tie"] < 0, fit["theta"],
+                             rougher):
+            break
+        chosen = g
+    if fit["problem"] is None:
         raise SystemExit("modal fit: no usable fit even with the smoothest tracks")
-    theta = best_theta
+    res["track_roughness"] = grid[chosen]
+    if modes > 1 and o["decay_tie"] != 0:
+        tie_grid = TIE_GRID if o["decay_tie"] < 0 else (o["decay_tie"],)
+        untied = fit["theta"]
+        ca = untied.reshape(modes, 2, m)[:, 0, :]
+        scale = np.maximum(np.abs(ca).mean(axis=1), 1e-3)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rho = ca[1:].mean(axis=1) / ca[0].mean()
+        if not np.isfinite(rho).all():
+            rho = np.ones(modes - 1)
+        tied = np.concatenate([untied, rho])
+        for sd in tie_grid:
+            candidate_tie = DecayTie(sd, scale)
+            if not try_candidate(res["track_roughness"], candidate_tie, True,
+                                 fit["theta"] if tie.sd > 0 else tied, tighter):
+                break
+            tie = candidate_tie
+        res["decay_tie"] = tie.sd
+        for g in range(chosen + 1, len(grid)) if tie.sd > 0 else ():
+            if not try_candidate(grid[g], tie, True, fit["theta"], rougher):
+                break
+            res["track_roughness"] = grid[g]
+    theta, converged, final = fit["theta"], fit["converged"], fit["problem"]
     prior = prior_rows(track, modes, res["track_roughness"])
-    final = stage1
 
     length_s = p["tau_s"][-1]
     shape = None
@@ -453,9 +530,9 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                     if q > 0:
                         pairs.append((len(varying) - 1, len(varying)))
                     varying.append((j, basis[:, dcol], 1 + q))
-        probe = VpProblem(p, modes, ig, functions, varying, pairs, 1.0, prior)
+        probe = VpProblem(p, modes, ig, functions, varying, pairs, 1.0, prior, tie)
         weight = o["shape_weight"] if o["shape_weight"] >= 0 else choose_shape_weight(probe, theta, p)
-        stage2 = VpProblem(p, modes, ig, functions, varying, pairs, weight, prior)
+        stage2 = VpProblem(p, modes, ig, functions, varying, pairs, weight, prior, tie)
         theta2, usable, conv, nfev = solve(stage2, theta, o["max_iterations"])
         res["iterations"] += nfev
         if usable:
@@ -481,13 +558,14 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     if shape is not None:
         function_slopes = np.hstack([np.zeros((n, 1)), shape.first_derivatives(p["tau_s"])])
     coef = beta[0::2] + 1j * beta[1::2]
-    th = theta.reshape(modes, 2, m)
+    th = theta[:2 * modes * m].reshape(modes, 2, m)
     lower = p["L"].astype(complex)
     fitted = np.zeros((n, c))
     tracks = []
     for j in range(modes):
         ca, cw = th[j, 0], th[j, 1]
         mt = dict(alpha=values @ ca, omega=values @ cw, alpha_dot=slopes @ ca, omega_dot=slopes @ cw)
+        mt["decay_ratio"] = float(theta[2 * modes * m + j - 1]) if j > 0 and tie.sd > 0 else 1.0
         mt["f"] = mt["omega"] / (2 * np.pi)
         cov_a = covariance[2 * j * m:(2 * j + 1) * m, 2 * j * m:(2 * j + 1) * m]
         cov_w = covariance[(2 * j + 1) * m:(2 * j + 2) * m, (2 * j + 1) * m:(2 * j + 2) * m]
@@ -670,6 +748,8 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
                        "shape_weight": fit["shape_weight"], "track_roughness": fit["track_roughness"],
                        "shape_weight_from_data": OPTIONS["shape_weight"] < 0,
                        "track_roughness_from_data": OPTIONS["track_roughness"] < 0,
+                       "decay_tie": fit["decay_tie"],
+                       "decay_tie_from_data": OPTIONS["decay_tie"] < 0,
                        "mapping": "state_space"},
            "residual_rms_whitened": fit["residual_rms_whitened"], "converged": bool(fit["converged"]),
            "noise_covariance_rad2": fit["noise_cov"].tolist(),
@@ -690,7 +770,8 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
            "valid": [tr["valid"].tolist() for tr in tracks],
            "anr_db": [series(tr["anr_db"]) for tr in tracks],
            "K_valid": par["valid"].tolist(),
-           "iterations": fit["iterations"]}
+           "iterations": fit["iterations"],
+           "decay_ratio": [tr["decay_ratio"] for tr in tracks]}
     return out
 
 
