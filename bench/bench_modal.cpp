@@ -3,8 +3,9 @@
 // parameters, on a 5 s, 4 kHz two-channel free response of the paper's postural arm (Piovesan 2012
 // eq 52, C = 0.01 K, hand at (0.4, 0) m, 5 N x 20 ms pulse at 2.5 s, 45 degrees), 20 dB noise.
 //
-// Usage: bench_modal [REPEATS]   (default 1). Prints the median, minimum and maximum wall time of
-// one fit over the repeats, and the k11 error as a sanity check. Time the whole process from
+// Usage: bench_modal [REPEATS [DECAY_TIE]]   (default 1 and the default decay tie, chosen from the
+// data; 0 = none). Prints the median, minimum and maximum wall time of one fit over the repeats,
+// the Levenberg-Marquardt iterations, roughness and tie chosen, and k11 as a sanity check. Time the whole process from
 // outside as well (e.g. /usr/bin/time -v bench_modal 1).
 
 #include <Eigen/Eigenvalues>
@@ -57,6 +58,8 @@ Eigen::MatrixXd trial(const Eigen::Matrix2d& m, const Eigen::Matrix2d& k, const 
 int main(int argc, char** argv) {
   stiffid::data::keep_large_blocks_for_reuse();  // as the stiffid program does
   const int repeats = argc > 1 ? std::max(1, std::atoi(argv[1])) : 1;
+  stiffid::estimators::DampedModesOptions options;
+  if (argc > 2) options.decay_tie = std::atof(argv[2]);
   const double rate_hz = 4000.0;
   const stiffid::models::ArmParameters arm;
   const Eigen::Vector2d theta = stiffid::models::inverse_kinematics(arm, {0.4, 0.0});
@@ -69,20 +72,24 @@ int main(int argc, char** argv) {
   const Eigen::MatrixXd q = trial(m, k, c, v0, rate_hz);
 
   std::vector<double> seconds;
-  double k11 = 0.0;
+  double k11 = 0.0, roughness = 0.0, tie = 0.0;
+  int iterations = 0;
   for (int r = 0; r < repeats; ++r) {
     const auto start = std::chrono::steady_clock::now();
-    const auto modes = stiffid::estimators::fit_damped_modes(q, rate_hz, 0.0, 2.5, {});
+    const auto modes = stiffid::estimators::fit_damped_modes(q, rate_hz, 0.0, 2.5, options);
     const auto params = stiffid::estimators::modal_parameters(modes, {m}, {});
     seconds.push_back(
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     const auto it = std::lower_bound(params.t_s.data(), params.t_s.data() + params.t_s.size(), 3.0);
     k11 = params.stiffness[it - params.t_s.data()](0, 0);
+    iterations = modes.iterations;
+    roughness = modes.track_roughness;
+    tie = modes.decay_tie;
   }
   std::sort(seconds.begin(), seconds.end());
-  std::printf("bench_modal: %d repeats, median %.1f ms, min %.1f ms, max %.1f ms; k11(3 s) = %.2f "
-              "N m/rad (true 35)\n",
+  std::printf("bench_modal: %d repeats, median %.1f ms, min %.1f ms, max %.1f ms; %d iterations, "
+              "roughness %g, decay tie %g; k11(3 s) = %.2f N m/rad (true 35)\n",
               repeats, 1e3 * seconds[seconds.size() / 2], 1e3 * seconds.front(),
-              1e3 * seconds.back(), k11);
+              1e3 * seconds.back(), iterations, roughness, tie, k11);
   return 0;
 }
