@@ -20,7 +20,8 @@ namespace stiffid::estimators {
 struct MatrixPencilOptions {
   int modes = 2;                 ///< n real damped oscillations (2n complex poles)
   double pencil_fraction = 1.0 / 3.0;  ///< pencil parameter L as a fraction of the samples, (0, 0.5]
-  int max_pencil = 160;          ///< cap on L, samples: the cost is O(channels * samples * L^2)
+  int max_pencil = 160;          ///< cap on L, samples: the cost is O(channels * samples * L +
+                                 ///< channels * L^2 + L^3) (Gram matrix, eigenproblem)
 };
 
 struct MatrixPencilResult {
@@ -29,7 +30,9 @@ struct MatrixPencilResult {
   Eigen::VectorXd omega_rad_per_s;      ///< [n] damped angular frequencies omega_j, rad/s
   Eigen::VectorXd alpha_per_s;          ///< [n] alpha_j = Re(lambda_j), 1/s (eq 47 sign: < 0 decays)
   Eigen::MatrixXcd amplitude;           ///< (n x C) a_jk at the first sample, channel units
-  Eigen::VectorXd singular_values;      ///< [L + 1] of the stacked Hankel matrix (model order check)
+  Eigen::VectorXd singular_values;      ///< [L + 1] of the stacked Hankel matrix (model order
+                                        ///< check; from its Gram matrix, so those below ~1e-8 of
+                                        ///< the largest are not accurate)
   double residual_rms = 0.0;            ///< RMS of data minus model over all samples, channel units
   int pencil = 0;                       ///< pencil parameter L used, samples
 };
