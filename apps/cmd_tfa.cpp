@@ -341,8 +341,9 @@ void add_tfa_command(CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--decay-tie", o.modes.decay_tie,
                   "modal: prior SD of the soft tie alpha_j(t) = rho_j alpha_1(t) of the decay "
-                  "tracks, relative (0: no tie; < 0: chosen from the data by the BIC rule, "
-                  "docs/tfa_modal.md)")
+                  "tracks, relative (0: no tie; < 0: chosen from the data by the BIC rule; for "
+                  "posture trials whose stiffness and damping change by a common factor, not "
+                  "for movement trials: docs/tfa_modal.md)")
       ->capture_default_str();
   sub->add_option("--shape-weight", o.modes.shape_weight,
                   "modal: weight of the penalty on mode-shape changes (< 0: chosen from the data)")

@@ -15,7 +15,8 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     integrals (cubic_bspline.cpp);
   - variable projection with Kaufman's Jacobian, minimized by Levenberg-Marquardt, along the
     roughness continuation 0.003 .. 3 with the BIC rule;
-  - the decay tie (more than one mode): a Gaussian prior on (c_alpha_j - rho_j c_alpha_0) /
+  - the decay tie (more than one mode; opt-in, --decay-tie as stiffid's, default 0 = none): a
+    Gaussian prior on (c_alpha_j - rho_j c_alpha_0) /
     (sd scale_j) for every decay-spline coefficient of the modes j > 0, scale_j = mode j's mean
     |c_alpha_j| at the untied fit (at least 1e-3), the ratios rho_j extra parameters (flat
     prior) after the tracks'; its sd along 0.3 .. 0.003, each fit from the previous one, tighter
@@ -66,7 +67,7 @@ from peer_tfa import ARM, inertia, make_trial
 # Defaults of DampedModesOptions / DeviationOptions (estimators/damped_modes.hpp, tfa_deviation.hpp).
 OPTIONS = dict(decimate_hz=200.0, skip_s=0.025, noise_window_s=1.0, knot_spacing_s=0.1,
                shape_knot_spacing_s=0.5, shape_weight=-1.0, track_roughness=-1.0,
-               decay_tie=-1.0, init_window_s=0.5, anr_threshold_db=0.0,
+               decay_tie=0.0, init_window_s=0.5, anr_threshold_db=0.0,
                max_frequency_sd_hz=0.1, max_mode_to_data_db=20.0, min_mode_separation=0.01,
                max_iterations=100)
 PRE_ONSET_S, PULSE_S = 0.2, 0.02
@@ -789,7 +790,10 @@ def main():
     ap.add_argument("--angles", default="th1,th2")
     ap.add_argument("-o", "--output")
     ap.add_argument("--make-trial")
+    ap.add_argument("--decay-tie", type=float, default=OPTIONS["decay_tie"],
+                    help="as stiffid's --decay-tie: 0 no tie (default), < 0 from the data")
     a = ap.parse_args()
+    OPTIONS["decay_tie"] = a.decay_tie
     if a.make_trial:
         make_trial(a.make_trial)
         return

@@ -728,7 +728,9 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   result.residual_rms_whitened = std::sqrt(residual.head(rd).squaredNorm() / rd);
   // Posterior covariance of the track coefficients, scaled by the reduced chi-square when the
   // residual exceeds the pre-onset noise (model error or mis-estimated noise), never below it.
-  const Eigen::MatrixXd info = jacobian.transpose() * jacobian;
+  Eigen::MatrixXd info = Eigen::MatrixXd::Zero(fp.parameters(), fp.parameters());
+  info.selfadjointView<Eigen::Lower>().rankUpdate(jacobian.transpose());  // J^T J, one half
+  info.triangularView<Eigen::StrictlyUpper>() = info.transpose();
   const Eigen::MatrixXd covariance =
       std::max(1.0, chi2) * Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(info).pseudoInverse();
 

@@ -40,12 +40,15 @@ struct DampedModesOptions {
                                         ///< data over 0.003 .. 3 (continuation smooth -> rough),
                                         ///< rougher only while the BIC rule accepts the extra
                                         ///< effective parameters (docs/tfa_modal.md)
-  double decay_tie = -1.0;              ///< soft tie of the decay tracks, alpha_j(t) = rho_j
+  double decay_tie = 0.0;               ///< soft tie of the decay tracks, alpha_j(t) = rho_j
                                         ///< alpha_1(t) with rho_j fitted: prior SD of the
                                         ///< difference, relative to mode j's mean decay
-                                        ///< (dimensionless); 0: no tie; < 0: from the data over
-                                        ///< 0.3 .. 0.003 (loose -> tight), tighter only while the
-                                        ///< BIC rule accepts the lost fit (docs/tfa_modal.md)
+                                        ///< (dimensionless); 0 (default): no tie; < 0: from the
+                                        ///< data over 0.3 .. 0.003 (loose -> tight), tighter only
+                                        ///< while the BIC rule accepts the lost fit. Opt-in: it
+                                        ///< helps posture trials whose K and C change by a
+                                        ///< common factor and hurts movement trials
+                                        ///< (docs/tfa_modal.md)
   double init_window_s = 0.5;           ///< sliding matrix-pencil windows for the start, s
   double anr_threshold_db = 0.0;        ///< validity: amplitude-to-noise ratio at least this, dB
   double max_frequency_sd_hz = 0.1;     ///< validity: posterior SD of f_j(t) at most this, Hz

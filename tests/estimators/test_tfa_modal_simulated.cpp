@@ -89,9 +89,10 @@ BOOST_AUTO_TEST_CASE(constant_and_sigmoid_stiffness_at_20_db_three_noise_seeds) 
   // Issue 7's targets at 20 dB: over 2.6-3.175 s k11 <= 5 %, k12 <= 10 %, k22 <= 5 %; over
   // 2.6-4.5 s k11 <= 7.5 %, k12 <= 10 %, k22 <= 10 %, c11 <= 30 %, c12 and c22 <= 35 %.
   // Checked here where they hold for every noise seed 1-3: the direct terms k11, k22, c11, c22 at
-  // 90 and 135 degrees. NOT met, so only printed: k12 (up to 9 % at 90 degrees, seed 2), c12 (up
-  // to 37 %), and everything at 45 degrees, where the second mode is weak (k12 1.5-17 %, and the
-  // constant-K trial of seed 2 lost: k12 365 %); see docs/tfa_modal.md, "Limits".
+  // 90 and 135 degrees. NOT met, so only printed: k12 (up to 13 % at 90 degrees, seed 2), c12 (up
+  // to 55 %), and everything at 45 degrees, where the second mode is weak and the roughness rule
+  // can return rough tracks (k12 30-360 %; the opt-in decay tie brings most of them under 17 %);
+  // see docs/tfa_modal.md, "Limits".
   for (const m::ProfileKind profile : {m::ProfileKind::constant, m::ProfileKind::sigmoid}) {
     for (const double direction : {45.0, 90.0, 135.0}) {
       for (const unsigned seed : {1u, 2u, 3u}) {
