@@ -213,6 +213,8 @@ void run(TfaCommandOptions cli) {
                            {"track_roughness_from_data", mo.track_roughness < 0.0},
                            {"decay_tie", r.modes.decay_tie},
                            {"decay_tie_from_data", mo.decay_tie < 0.0},
+                           {"real_terms", r.modes.real_terms.size()},
+                           {"real_terms_from_data", mo.real_terms < 0},
                            {"mapping", "state_space"}});
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
     out["converged"] = r.modes.converged;
@@ -220,6 +222,17 @@ void run(TfaCommandOptions cli) {
     std::vector<double> ratios;
     for (const estimators::ModeTrack& mode : r.modes.modes) ratios.push_back(mode.decay_ratio);
     out["decay_ratio"] = ratios;
+    // Real terms b_k exp(rate (t - t_s[0])): the non-oscillatory part of the response (fibre
+    // creep of a Poynting-Thomson element); not modes, so not in K, C or the normalized force.
+    nlohmann::json real_terms = nlohmann::json::array();
+    for (const estimators::RealTerm& term : r.modes.real_terms) {
+      real_terms.push_back({{"rate_per_s", term.rate_per_s},
+                            {"rate_sd_per_s", term.rate_sd_per_s},
+                            {"amplitude_rad", std::vector<double>(term.amplitude.data(),
+                                                                  term.amplitude.data() +
+                                                                      term.amplitude.size())}});
+    }
+    out["real_terms"] = real_terms;
     if (!r.modes.warning.empty()) std::cerr << "stiffid tfa: warning: " << r.modes.warning << '\n';
     const Eigen::MatrixXd& cov = r.modes.noise_covariance;
     nlohmann::json noise = nlohmann::json::array();
@@ -344,6 +357,11 @@ void add_tfa_command(CLI::App& app) {
                   "tracks, relative (0: no tie; < 0: chosen from the data by the BIC rule; for "
                   "posture trials whose stiffness and damping change by a common factor, not "
                   "for movement trials: docs/tfa_modal.md)")
+      ->capture_default_str();
+  sub->add_option("--real-terms", o.modes.real_terms,
+                  "modal: non-oscillatory exponentials fitted beside the modes (constant rates; "
+                  "< 0: the fewest, 0 to 2 per joint, with which the start finds the oscillatory "
+                  "modes: 0 on a Kelvin-Voigt arm, needed for Poynting-Thomson trials)")
       ->capture_default_str();
   sub->add_option("--shape-weight", o.modes.shape_weight,
                   "modal: weight of the penalty on mode-shape changes (< 0: chosen from the data)")

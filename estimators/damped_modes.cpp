@@ -135,27 +135,44 @@ struct DecayTie {
   Eigen::VectorXd scale;  // [n] 1/s, mode j's mean |alpha| at the start of the tie search
 };
 
-// Variable-projection problem for fixed linear terms and shape penalty.
+// Variable-projection problem for fixed linear terms and shape penalty. Parameters: the track
+// coefficients (2 n M), the tie's ratios (n - 1 with a tie), the real terms' rates (R, 1/s).
+// Linear parameters: Re, Im of each LinearTerm, then the real terms' whitened amplitudes (R C).
 class VpProblem {
  public:
   VpProblem(const Prepared& p, int modes, const Eigen::MatrixXd& phase_integrals,
             const Eigen::MatrixXd& functions, std::vector<LinearTerm> terms,
             std::vector<std::pair<int, int>> penalized_pairs, double shape_weight,
-            const Eigen::MatrixXd& prior_rows, DecayTie tie = {})
+            const Eigen::MatrixXd& prior_rows, DecayTie tie, int real_terms)
       : p_(p), modes_(modes), ig_(phase_integrals), f_(functions), terms_(std::move(terms)),
         pairs_(std::move(penalized_pairs)), sqrt_weight_(std::sqrt(shape_weight)),
-        prior_(prior_rows), tie_(std::move(tie)) {}
+        prior_(prior_rows), tie_(std::move(tie)), real_(real_terms) {}
 
   int basis() const { return static_cast<int>(ig_.cols()); }
   int track_parameters() const { return 2 * modes_ * basis(); }
   int tied_modes() const { return tie_.sd > 0.0 ? modes_ - 1 : 0; }
-  int parameters() const { return track_parameters() + tied_modes(); }
-  int linear() const { return 2 * static_cast<int>(terms_.size()); }
+  int real_terms() const { return real_; }
+  int first_rate() const { return track_parameters() + tied_modes(); }
+  int parameters() const { return first_rate() + real_; }
+  int complex_linear() const { return 2 * static_cast<int>(terms_.size()); }
+  int linear() const { return complex_linear() + real_ * static_cast<int>(p_.whiten.rows()); }
   int data_rows() const { return static_cast<int>(p_.yw.size()); }
   int penalty_rows() const { return 2 * static_cast<int>(pairs_.size()); }
   int tie_rows() const { return tied_modes() * basis(); }
   int residuals() const {
     return data_rows() + penalty_rows() + static_cast<int>(prior_.rows()) + tie_rows();
+  }
+
+  // exp(beta_r tau_i) for every real term: (N x R); false on overflow.
+  bool real_exponentials(const double* theta, Eigen::MatrixXd& er) const {
+    er.resize(p_.tau_s.size(), real_);
+    for (int r = 0; r < real_; ++r) {
+      const double beta = theta[first_rate() + r];
+      if (!std::isfinite(beta) || beta * p_.tau_s(p_.tau_s.size() - 1) > 600.0)
+        return false;
+      er.col(r) = (beta * p_.tau_s.array()).exp().matrix();
+    }
+    return true;
   }
 
   // exp(Phi_j(tau_i)) for every mode: (N x n); false on overflow.
@@ -172,7 +189,8 @@ class VpProblem {
   }
 
   // Design matrix of the linear parameters: data rows then shape-penalty rows (without weight).
-  void design(const Eigen::MatrixXcd& e, Eigen::MatrixXd& a_data, Eigen::MatrixXd& a_penalty) const {
+  void design(const Eigen::MatrixXcd& e, const Eigen::MatrixXd& er, Eigen::MatrixXd& a_data,
+              Eigen::MatrixXd& a_penalty) const {
     const int n = static_cast<int>(e.rows());
     const int c = static_cast<int>(p_.whiten.rows());
     a_data.setZero(data_rows(), linear());
@@ -187,6 +205,9 @@ class VpProblem {
         }
       }
     }
+    for (int r = 0; r < real_; ++r)
+      for (int i = 0; i < n; ++i)
+        for (int k = 0; k < c; ++k) a_data(i * c + k, complex_linear() + r * c + k) = er(i, r);
     a_penalty.setZero(penalty_rows(), linear());
     for (size_t q = 0; q < pairs_.size(); ++q)
       for (int part = 0; part < 2; ++part) {
@@ -202,8 +223,8 @@ class VpProblem {
     // Work buffers are members (one solve uses a problem at a time): a fresh ~1 MB Jacobian
     // workspace per evaluation cost more in page faults than the arithmetic.
     Eigen::MatrixXcd& e = e_;
-    if (!oscillations(theta, e)) return false;
-    design(e, a_data_, a_penalty_);
+    if (!oscillations(theta, e) || !real_exponentials(theta, er_)) return false;
+    design(e, er_, a_data_, a_penalty_);
     const int rd = data_rows(), rp = penalty_rows(), nl = linear(), np = parameters();
     Eigen::MatrixXd& a = a_;
     a.resize(rd + rp, nl);
@@ -253,6 +274,12 @@ class VpProblem {
             d(i * c + k, (2 * j + 1) * m + q) = -g * y.imag();
           }
         }
+    // A real term's rate moves its contribution b_rk exp(beta_r tau) by tau times it.
+    for (int r = 0; r < real_; ++r)
+      for (int i = 0; i < n; ++i)
+        for (int k = 0; k < c; ++k)
+          d(i * c + k, first_rate() + r) =
+              p_.tau_s(i) * er_(i, r) * beta(complex_linear() + r * c + k);
     // -(I - Q Q^T) D with Q the first `rank` columns of the QR's orthogonal factor (the range
     // of A), formed once: two matrix products, several times faster than applying the
     // reflectors to D column by column.
@@ -290,9 +317,10 @@ class VpProblem {
   double sqrt_weight_;
   Eigen::MatrixXd prior_;  // (R x 2 n M) roughness prior rows on the track coefficients
   DecayTie tie_;
+  int real_;  // R real terms
   // Work buffers of evaluate().
   mutable Eigen::MatrixXcd e_, contribution_;
-  mutable Eigen::MatrixXd a_data_, a_penalty_, a_, d_, q_, qtd_;
+  mutable Eigen::MatrixXd er_, a_data_, a_penalty_, a_, d_, q_, qtd_;
   mutable Eigen::VectorXd b_;
   mutable Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr_;
 };
@@ -351,16 +379,18 @@ struct StartPencils {
 };
 
 StartPencils start_pencils(const Prepared& p, const UniformCubicBspline& track,
-                           const DampedModesOptions& o) {
+                           const DampedModesOptions& o, int real_poles) {
   const int n = static_cast<int>(p.y.rows());
   StartPencils out;
   out.window_samples = std::min(
-      n, std::max(4 * o.modes + 2, static_cast<int>(std::lround(o.init_window_s * p.rate_hz))));
+      n, std::max(2 * (2 * o.modes + real_poles) + 2,
+                  static_cast<int>(std::lround(o.init_window_s * p.rate_hz))));
   const int hop = std::max(1, static_cast<int>(std::lround(track.spacing_s() * p.rate_hz)));
   for (int first = 0; first + out.window_samples <= n; first += hop) out.first.push_back(first);
   out.window.resize(out.first.size());
   MatrixPencilOptions po;
   po.modes = o.modes;
+  po.real_poles = real_poles;
   data::parallel_for_index(out.first.size() + 1, [&](std::size_t k) {
     if (k == 0) {
       out.global = estimate_matrix_pencil(p.y, p.rate_hz, po);
@@ -394,6 +424,14 @@ Eigen::VectorXd start_tracks(const Prepared& p, const UniformCubicBspline& track
       const double ratio = w.omega_rad_per_s(j) / last_omega(j);
       if (anr < 4.0 || ratio < 0.7 || ratio > 1.4 || std::abs(w.alpha_per_s(j)) > w.omega_rad_per_s(j))
         continue;
+      // Nearer another mode's track than its own: the window lost mode j (a weak mode in the
+      // noise) and its pole j is another mode's.
+      bool nearer_other = false;
+      for (int i = 0; i < modes; ++i) {
+        nearer_other = nearer_other || (i != j && std::abs(w.omega_rad_per_s(j) - last_omega(i)) <
+                                                      std::abs(w.omega_rad_per_s(j) - last_omega(j)));
+      }
+      if (nearer_other) continue;
       centre[j].push_back(p.tau_s(first) + half_s);
       omega[j].push_back(w.omega_rad_per_s(j));
       alpha[j].push_back(w.alpha_per_s(j));
@@ -436,9 +474,11 @@ Eigen::MatrixXd prior_rows(const UniformCubicBspline& track, int modes, double r
 double choose_shape_weight(const VpProblem& problem, const Eigen::VectorXd& theta,
                            const Prepared& p) {
   Eigen::MatrixXcd e;
-  if (!problem.oscillations(theta.data(), e)) return 1.0;
+  Eigen::MatrixXd er;
+  if (!problem.oscillations(theta.data(), e) || !problem.real_exponentials(theta.data(), er))
+    return 1.0;
   Eigen::MatrixXd a, r;
-  problem.design(e, a, r);
+  problem.design(e, er, a, r);
   const Eigen::MatrixXd ata = a.transpose() * a;
   const Eigen::MatrixXd rtr = r.transpose() * r;
   const Eigen::VectorXd atb = a.transpose() * p.yw;
@@ -553,15 +593,26 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   result.data = p.y;
 
   const UniformCubicBspline track(p.tau_s(n - 1), options.knot_spacing_s);
-  const StartPencils pencils = start_pencils(p, track, options);
+  // Real terms: as given, or the fewest (0 .. 2n) with which the global pencil finds the n
+  // oscillatory poles and the real ones (docs/tfa_modal.md, "Real terms").
+  const int max_real = options.real_terms >= 0 ? options.real_terms : 2 * modes;
+  int real = std::max(0, options.real_terms);
+  StartPencils pencils = start_pencils(p, track, options, real);
+  while (!pencils.global.status.ok && real < max_real && 2 * (2 * modes + real + 1) + 2 <= n)
+    pencils = start_pencils(p, track, options, ++real);
   result.start = pencils.global;
   if (!result.start.status.ok) {
-    result.status = Status::failure("modal fit: no start: " + result.start.status.message);
+    result.status = Status::failure(
+        "modal fit: no start: " + result.start.status.message +
+        (options.real_terms < 0 ? " (also with 1 to " + std::to_string(max_real) + " real terms)"
+                                : ""));
     return result;
   }
   const int m = track.size();
   const Eigen::MatrixXd integrals = track.integrals(p.tau_s);
-  Eigen::VectorXd theta = start_tracks(p, track, pencils, options);
+  Eigen::VectorXd theta(2 * modes * m + real);
+  theta.head(2 * modes * m) = start_tracks(p, track, pencils, options);
+  theta.tail(real) = pencils.global.real_rate_per_s;
 
   // Stage 1: constant mode shapes, one free complex amplitude per mode and whitened channel. The
   // track roughness is chosen from the data by the rule below, unless given.
@@ -597,9 +648,9 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // says so for its RSS and effective parameters; false when it is not usable or not taken.
   auto try_candidate = [&](double roughness, const DecayTie& candidate_tie, bool with_dof,
                            const Eigen::VectorXd& start, auto&& accept) {
-    auto problem = std::make_unique<VpProblem>(p, modes, integrals, constant, terms,
-                                               std::vector<std::pair<int, int>>{}, 0.0,
-                                               prior_rows(track, modes, roughness), candidate_tie);
+    auto problem = std::make_unique<VpProblem>(
+        p, modes, integrals, constant, terms, std::vector<std::pair<int, int>>{}, 0.0,
+        prior_rows(track, modes, roughness), candidate_tie, real);
     Eigen::VectorXd candidate = start;
     const StageOutcome o = solve(*problem, candidate, options.max_iterations);
     result.iterations += o.iterations;
@@ -634,16 +685,18 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     if (options.decay_tie < 0.0) tie_grid = {0.3, 0.1, 0.03, 0.01, 0.003};
     DecayTie candidate_tie;
     candidate_tie.scale.resize(modes);
+    // [tracks, ratios, real rates]
+    const int tracks = 2 * modes * m;
     Eigen::VectorXd tied(theta.size() + modes - 1);
-    tied.head(theta.size()) = theta;
+    tied.head(tracks) = theta.head(tracks);
+    tied.tail(real) = theta.tail(real);
     for (int j = 0; j < modes; ++j) {
       candidate_tie.scale(j) = std::max(theta.segment(2 * j * m, m).cwiseAbs().mean(), 1e-3);
       if (j > 0) {
-        tied(theta.size() + j - 1) = theta.segment(2 * j * m, m).mean() /
-                                     theta.segment(0, m).mean();
+        tied(tracks + j - 1) = theta.segment(2 * j * m, m).mean() / theta.segment(0, m).mean();
       }
     }
-    if (!tied.allFinite()) tied.tail(modes - 1).setOnes();
+    if (!tied.segment(tracks, modes - 1).allFinite()) tied.segment(tracks, modes - 1).setOnes();
     auto tighter = [&](double rss, double dof, double price) {
       return options.decay_tie > 0.0 || rss - previous_rss <= price * (previous_dof - dof);
     };
@@ -692,11 +745,11 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
         }
     }
     auto probe = std::make_unique<VpProblem>(p, modes, integrals, functions, varying, pairs, 1.0,
-                                             prior, tie);
+                                             prior, tie, real);
     const double weight =
         options.shape_weight >= 0.0 ? options.shape_weight : choose_shape_weight(*probe, theta, p);
     auto stage2 = std::make_unique<VpProblem>(p, modes, integrals, functions, varying, pairs,
-                                              weight, prior, tie);
+                                              weight, prior, tie, real);
     Eigen::VectorXd theta2 = theta;
     const StageOutcome outcome2 = solve(*stage2, theta2, options.max_iterations);
     result.iterations += outcome2.iterations;
@@ -805,6 +858,18 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
                     mt.omega_rad_per_s(i) > 0.0 && std::isfinite(mt.alpha_per_s(i));
     }
     result.modes.push_back(std::move(mt));
+  }
+  // Real terms: whitened amplitudes b_r back to channel units L b_r.
+  Eigen::MatrixXd er;
+  fp.real_exponentials(theta.data(), er);
+  for (int r = 0; r < real; ++r) {
+    RealTerm rt;
+    const int index = fp.first_rate() + r;
+    rt.rate_per_s = theta(index);
+    rt.rate_sd_per_s = std::sqrt(std::max(0.0, covariance(index, index)));
+    rt.amplitude = p.cholesky * beta.segment(fp.complex_linear() + r * c, c);
+    result.fitted += er.col(r) * rt.amplitude.transpose();
+    result.real_terms.push_back(std::move(rt));
   }
   flag_degenerate_modes(p, options, result.modes);
   std::stable_sort(result.modes.begin(), result.modes.end(), [](const auto& a, const auto& b) {

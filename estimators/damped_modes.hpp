@@ -5,10 +5,12 @@
 // whole post-onset record at once by variable projection on Ceres.
 //
 // Model, channel k, time tau from the first fitted sample (Piovesan 2012 eqs 5, 33, 39):
-//   x_k(tau) = sum_j Re( a_jk(tau) exp(Phi_j(tau)) ),
+//   x_k(tau) = sum_j Re( a_jk(tau) exp(Phi_j(tau)) ) + sum_r b_rk exp(beta_r tau),
 //   Phi_j(tau) = int_0^tau (alpha_j(s) + i omega_j(s)) ds,
 // omega_j, alpha_j cubic B-splines (knots ~0.1 s), a_jk(tau) complex cubic B-splines with coarse
-// knots whose changes are penalized (they stay constant unless the data ask otherwise). The
+// knots whose changes are penalized (they stay constant unless the data ask otherwise), and
+// optional real terms (non-oscillatory exponentials with constant rates beta_r and amplitudes b_rk:
+// the slow creep of a Poynting-Thomson element's fibres, its real poles). The
 // amplitudes a are linear and eliminated (variable projection, Golub & Pereyra 2003, with
 // Kaufman's Jacobian); residuals are whitened by the pre-onset noise covariance.
 
@@ -59,6 +61,18 @@ struct DampedModesOptions {
                                         ///< than this fraction of their mean (or 2 SDs) are both
                                         ///< invalid there (merged tracks)
   int max_iterations = 100;             ///< Levenberg-Marquardt iterations per stage
+  int real_terms = -1;                  ///< R real terms b_k exp(beta_r tau) beside the modes
+                                        ///< (constant rate beta_r, 1/s, and amplitudes); < 0
+                                        ///< (default): the fewest (0 .. 2n) with which the start's
+                                        ///< matrix pencil finds the n oscillatory poles (0 on a
+                                        ///< Kelvin-Voigt arm; Poynting-Thomson trials need them)
+};
+
+/// One real term of the fit: b_k exp(beta tau), tau from the first fitted sample.
+struct RealTerm {
+  double rate_per_s = 0.0;     ///< beta, 1/s (< 0 decays)
+  double rate_sd_per_s = 0.0;  ///< its posterior SD, 1/s
+  Eigen::VectorXd amplitude;   ///< [C] b_k at the first fitted sample, channel units (rad)
 };
 
 /// One mode's tracks over the fitted times (T samples, C channels).
@@ -94,7 +108,9 @@ struct DampedModesResult {
   std::vector<ModeTrack> modes;     ///< [n] in ascending mean frequency
   double rate_hz = 0.0;             ///< sample rate of the fitted data, Hz
   Eigen::MatrixXd noise_covariance; ///< (C x C) of the filtered pre-onset noise, channel units^2
-  Eigen::MatrixXd fitted;           ///< (T x C) the model at t_s, channel units
+  std::vector<RealTerm> real_terms; ///< [R] slowest first; empty without real terms
+  Eigen::MatrixXd fitted;           ///< (T x C) the model at t_s (modes and real terms),
+                                    ///< channel units
   Eigen::MatrixXd data;             ///< (T x C) filtered, decimated data at t_s, channel units
   MatrixPencilResult start;         ///< global matrix pencil over the fitted samples
   double shape_weight = 0.0;        ///< shape-change penalty used

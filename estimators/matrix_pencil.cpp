@@ -23,26 +23,34 @@ void check_inputs(const Eigen::Ref<const Eigen::MatrixXd>& samples, double sampl
   if (!(options.pencil_fraction > 0.0 && options.pencil_fraction <= 0.5))
     throw InputError("matrix pencil: pencil_fraction must be in (0, 0.5], got " +
                      std::to_string(options.pencil_fraction));
+  if (options.real_poles < 0)
+    throw InputError("matrix pencil: real_poles must be at least 0, got " +
+                     std::to_string(options.real_poles));
   if (samples.cols() < 1) throw InputError("matrix pencil: no channels");
-  const int needed = 4 * options.modes + 2;
+  const int needed = 2 * (2 * options.modes + options.real_poles) + 2;
   if (samples.rows() < needed)
     throw InputError("matrix pencil: " + std::to_string(samples.rows()) + " samples cannot give " +
-                     std::to_string(options.modes) + " modes; need at least " +
+                     std::to_string(options.modes) + " modes and " +
+                     std::to_string(options.real_poles) + " real poles; need at least " +
                      std::to_string(needed));
   if (!samples.allFinite()) throw InputError("matrix pencil: samples contain NaN or infinity");
 }
 
-// Real least-squares basis of sum_j Re(a_j exp(lambda_j t)): columns Re(e), -Im(e) per pole, so
-// that the coefficients are [Re a_j, Im a_j].
-Eigen::MatrixXd damped_basis(const Eigen::VectorXcd& lambda,
+// Real least-squares basis of sum_j Re(a_j exp(lambda_j t)) + sum_r b_r exp(beta_r t): columns
+// Re(e), -Im(e) per complex pole, so that the coefficients are [Re a_j, Im a_j], then one column
+// exp(beta_r t) per real pole.
+Eigen::MatrixXd damped_basis(const Eigen::VectorXcd& lambda, const Eigen::VectorXd& beta,
                              const Eigen::Ref<const Eigen::VectorXd>& t_s) {
-  Eigen::MatrixXd basis(t_s.size(), 2 * lambda.size());
-  for (Eigen::Index j = 0; j < lambda.size(); ++j)
+  const Eigen::Index n = lambda.size();
+  Eigen::MatrixXd basis(t_s.size(), 2 * n + beta.size());
+  for (Eigen::Index j = 0; j < n; ++j)
     for (Eigen::Index i = 0; i < t_s.size(); ++i) {
       const std::complex<double> e = std::exp(lambda(j) * t_s(i));
       basis(i, 2 * j) = e.real();
       basis(i, 2 * j + 1) = -e.imag();
     }
+  for (Eigen::Index r = 0; r < beta.size(); ++r)
+    basis.col(2 * n + r) = (beta(r) * t_s.array()).exp().matrix();
   return basis;
 }
 
@@ -55,7 +63,8 @@ MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd
   const int s = static_cast<int>(samples.rows());
   const int c = static_cast<int>(samples.cols());
   const int n = options.modes;
-  const int order = 2 * n;
+  const int real_poles = options.real_poles;
+  const int order = 2 * n + real_poles;
   const int pencil = std::clamp(static_cast<int>(options.pencil_fraction * s), order + 1,
                                 std::max(order + 1, options.max_pencil));
   const int rows = s - pencil;
@@ -95,17 +104,26 @@ MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd
   const Eigen::MatrixXd z_matrix = v1.colPivHouseholderQr().solve(v2);  // (2n x 2n), Hua eq 23
   const Eigen::VectorXcd z = Eigen::EigenSolver<Eigen::MatrixXd>(z_matrix, false).eigenvalues();
 
-  // Keep the poles in the upper half plane (their conjugates carry no new information).
+  // Keep the poles in the upper half plane (their conjugates carry no new information) and the
+  // real ones (positive z: a negative real z is an oscillation at the Nyquist rate).
   std::vector<std::complex<double>> lambda_up;
+  std::vector<double> real_up;
   for (Eigen::Index j = 0; j < z.size(); ++j) {
     if (std::abs(z(j)) == 0.0) continue;
     const std::complex<double> lambda = std::log(z(j)) * sample_rate_hz;
     if (lambda.imag() > 1e-9 * sample_rate_hz) lambda_up.push_back(lambda);
+    if (z(j).imag() == 0.0 && z(j).real() > 0.0) real_up.push_back(lambda.real());
   }
   if (static_cast<int>(lambda_up.size()) < n) {
     result.status = Status::failure(
         "matrix pencil: found " + std::to_string(lambda_up.size()) + " oscillatory poles of " +
         std::to_string(n) + " (the others are real: overdamped modes or too much noise)");
+    return result;
+  }
+  if (static_cast<int>(real_up.size()) < real_poles) {
+    result.status = Status::failure("matrix pencil: found " + std::to_string(real_up.size()) +
+                                    " real poles of " + std::to_string(real_poles) +
+                                    " (the model order went to further oscillations)");
     return result;
   }
   std::sort(lambda_up.begin(), lambda_up.end(),
@@ -115,14 +133,18 @@ MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd
   result.omega_rad_per_s = lambda.imag();
   result.frequency_hz = result.omega_rad_per_s / (2.0 * M_PI);
   result.alpha_per_s = lambda.real();
+  std::sort(real_up.begin(), real_up.end(),
+            [](double a, double b) { return std::abs(a) < std::abs(b); });
+  result.real_rate_per_s = Eigen::Map<const Eigen::VectorXd>(real_up.data(), real_poles);
 
   const Eigen::VectorXd t_s = Eigen::VectorXd::LinSpaced(s, 0.0, (s - 1) / sample_rate_hz);
-  const Eigen::MatrixXd basis = damped_basis(lambda, t_s);
+  const Eigen::MatrixXd basis = damped_basis(lambda, result.real_rate_per_s, t_s);
   const Eigen::MatrixXd coefficients = basis.colPivHouseholderQr().solve(samples);
   result.amplitude.resize(n, c);
   for (int j = 0; j < n; ++j)
     for (int k = 0; k < c; ++k)
       result.amplitude(j, k) = {coefficients(2 * j, k), coefficients(2 * j + 1, k)};
+  result.real_amplitude = coefficients.bottomRows(real_poles);
   result.residual_rms = std::sqrt((samples - basis * coefficients).squaredNorm() / (double(s) * c));
   return result;
 }
@@ -132,12 +154,14 @@ Eigen::MatrixXd evaluate_damped_exponentials(const MatrixPencilResult& result,
   const Eigen::VectorXcd lambda =
       result.alpha_per_s.cast<std::complex<double>>() +
       std::complex<double>(0.0, 1.0) * result.omega_rad_per_s.cast<std::complex<double>>();
-  const Eigen::MatrixXd basis = damped_basis(lambda, t_s);
-  Eigen::MatrixXd coefficients(2 * lambda.size(), result.amplitude.cols());
-  for (Eigen::Index j = 0; j < lambda.size(); ++j) {
+  const Eigen::MatrixXd basis = damped_basis(lambda, result.real_rate_per_s, t_s);
+  const Eigen::Index n = lambda.size();
+  Eigen::MatrixXd coefficients(2 * n + result.real_rate_per_s.size(), result.amplitude.cols());
+  for (Eigen::Index j = 0; j < n; ++j) {
     coefficients.row(2 * j) = result.amplitude.row(j).real();
     coefficients.row(2 * j + 1) = result.amplitude.row(j).imag();
   }
+  coefficients.bottomRows(result.real_rate_per_s.size()) = result.real_amplitude;
   return basis * coefficients;
 }
 

@@ -105,6 +105,36 @@ BOOST_AUTO_TEST_CASE(close_modes_with_a_weak_one_in_white_noise) {
   BOOST_CHECK_CLOSE(r.residual_rms, rms / 10.0, 10.0);
 }
 
+BOOST_AUTO_TEST_CASE(real_poles_beside_the_oscillations_are_exact_noise_free) {
+  // Two damped oscillations plus a slow real exponential b_k exp(-2 t) (the creep of a
+  // Poynting-Thomson element's fibres): with real_poles = 1 the model order is 5 and every pole
+  // and amplitude is exact to round-off.
+  const std::vector<Mode> modes = {{2.4, -1.8, {1.0, 0.3}, {0.6, -0.2}},
+                                   {3.4, -2.5, {0.05, -0.1}, {-0.2, 0.12}}};
+  const double rate_hz = 200.0, beta = -2.0;
+  const Eigen::Vector2d b(0.4, -0.25);
+  Eigen::MatrixXd x = damped_sum(modes, 500, rate_hz);
+  for (int i = 0; i < 500; ++i) x.row(i) += std::exp(beta * i / rate_hz) * b.transpose();
+  MatrixPencilOptions options;
+  options.real_poles = 1;
+  const auto r = estimate_matrix_pencil(x, rate_hz, options);
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  for (int j = 0; j < 2; ++j) {
+    BOOST_CHECK_CLOSE(r.frequency_hz(j), modes[j].f_hz, 1e-8 * 100);
+    BOOST_CHECK_CLOSE(r.alpha_per_s(j), modes[j].alpha_per_s, 1e-8 * 100);
+    BOOST_CHECK_SMALL(std::abs(r.amplitude(j, 0) - modes[j].a0), 1e-8);
+    BOOST_CHECK_SMALL(std::abs(r.amplitude(j, 1) - modes[j].a1), 1e-8);
+  }
+  BOOST_REQUIRE_EQUAL(r.real_rate_per_s.size(), 1);
+  BOOST_CHECK_CLOSE(r.real_rate_per_s(0), beta, 1e-8 * 100);
+  BOOST_CHECK_SMALL((r.real_amplitude.row(0).transpose() - b).norm(), 1e-8);
+  BOOST_CHECK_SMALL(r.residual_rms, 1e-10);
+  const Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(5, 0.0, 2.0);
+  const Eigen::MatrixXd model = evaluate_damped_exponentials(r, t);
+  for (int i = 0; i < 5; ++i)
+    BOOST_CHECK_SMALL((model.row(i) - x.row(i * 100)).norm(), 1e-9);
+}
+
 BOOST_AUTO_TEST_CASE(rejects_bad_input_and_reports_non_oscillatory_data) {
   const Eigen::MatrixXd short_record = Eigen::MatrixXd::Ones(9, 2);
   BOOST_CHECK_THROW(estimate_matrix_pencil(short_record, 100.0, MatrixPencilOptions{}), InputError);
@@ -113,6 +143,9 @@ BOOST_AUTO_TEST_CASE(rejects_bad_input_and_reports_non_oscillatory_data) {
   MatrixPencilOptions zero_modes;
   zero_modes.modes = 0;
   BOOST_CHECK_THROW(estimate_matrix_pencil(x, 100.0, zero_modes), InputError);
+  MatrixPencilOptions negative_real;
+  negative_real.real_poles = -1;
+  BOOST_CHECK_THROW(estimate_matrix_pencil(x, 100.0, negative_real), InputError);
   // Pure decaying exponentials (real poles) have no oscillatory pole: reported, not thrown.
   Eigen::MatrixXd decay(200, 1);
   for (int i = 0; i < 200; ++i) decay(i, 0) = std::exp(-0.01 * i) + 0.5 * std::exp(-0.05 * i);

@@ -64,12 +64,16 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
                           "eta_squared_per_s2", "K_nm_per_rad", "C_nms_per_rad", "eigenvectors",
                           "normalized_force", "options", "valid", "anr_db", "K_valid",
                           "noise_covariance_rad2", "residual_rms_whitened", "iterations",
-                          "decay_ratio"}) {
+                          "decay_ratio", "real_terms"}) {
     BOOST_CHECK_MESSAGE(j.contains(key), key);
   }
-  for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "shape_weight"}) {
+  for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "shape_weight",
+                          "real_terms", "real_terms_from_data"}) {
     BOOST_CHECK_MESSAGE(j["options"].contains(key), key);
   }
+  // A Kelvin-Voigt arm has no real poles: no real term is added.
+  BOOST_CHECK_EQUAL(j["real_terms"].size(), 0u);
+  BOOST_CHECK_EQUAL(j["options"]["real_terms"].get<int>(), 0);
   BOOST_CHECK_EQUAL(j["decay_ratio"].size(), 2u);
   BOOST_CHECK_EQUAL(j["decay_ratio"][0].get<double>(), 1.0);  // the reference mode
   const size_t frames = j["t_s"].size();
