@@ -52,6 +52,7 @@ namespace stiffid::apps {
 namespace {
 
 struct TfaCommandOptions {
+  std::string design = "whole";
   std::string trial_path, angles, forces, onset, method = "modal", baseline_path,
       subject_path, window = "kaiser:3", output_path, spectrogram_path;
   estimators::TfaOptions tfa;
@@ -160,6 +161,7 @@ std::string spectrogram_csv(const estimators::ReassignedSpectrogram& sg,
 void run(TfaCommandOptions cli) {
   estimators::TfaOptions& o = cli.tfa;
   o.method = estimators::parse_tfa_method(cli.method);
+  o.modes.design = estimators::parse_modal_design(cli.design);
   if (!cli.spectrogram_path.empty() && o.method != estimators::TfaMethod::spectrogram) {
     throw InputError("--spectrogram: the time-frequency map exists only with --method spectrogram");
   }
@@ -213,6 +215,8 @@ void run(TfaCommandOptions cli) {
                            {"track_roughness_from_data", mo.track_roughness < 0.0},
                            {"decay_tie", r.modes.decay_tie},
                            {"decay_tie_from_data", mo.decay_tie < 0.0},
+                           {"design", estimators::to_string(mo.design)},
+                           {"sliding_window_s", mo.sliding_window_s},
                            {"real_terms", r.modes.real_terms.size()},
                            {"real_terms_from_data", mo.real_terms < 0},
                            {"mapping", "state_space"}});
@@ -357,6 +361,14 @@ void add_tfa_command(CLI::App& app) {
                   "tracks, relative (0: no tie; < 0: chosen from the data by the BIC rule; for "
                   "posture trials whose stiffness and damping change by a common factor, not "
                   "for movement trials: docs/tfa_modal.md)")
+      ->capture_default_str();
+  sub->add_option("--design", cli->design,
+                  "modal: whole (the whole free response at once, spline tracks) or sliding "
+                  "(one fit per --sliding-window-s window around each sample, locally linear "
+                  "tracks; docs/tfa_modal.md)")
+      ->capture_default_str();
+  sub->add_option("--sliding-window-s", o.modes.sliding_window_s,
+                  "modal, --design sliding: window length, s")
       ->capture_default_str();
   sub->add_option("--real-terms", o.modes.real_terms,
                   "modal: non-oscillatory exponentials fitted beside the modes (constant rates; "

@@ -46,6 +46,7 @@ void check_options(const DampedModesOptions& o) {
   if (o.track_roughness == 0.0 || !std::isfinite(o.track_roughness))
     fail("track_roughness", "must be positive (rad/s), or negative for the choice from the data");
   if (!(o.init_window_s > 0.0)) fail("init_window_s", "must be positive (s)");
+  if (!(o.sliding_window_s > 0.0)) fail("sliding_window_s", "must be positive (s)");
   if (!(o.max_frequency_sd_hz > 0.0)) fail("max_frequency_sd_hz", "must be positive (Hz)");
   if (!std::isfinite(o.max_mode_to_data_db)) fail("max_mode_to_data_db", "must be finite (dB)");
   if (!(o.min_mode_separation >= 0.0 && o.min_mode_separation < 1.0))
@@ -576,7 +577,265 @@ void flag_degenerate_modes(const Prepared& p, const DampedModesOptions& options,
   }
 }
 
+// Rows [first, first + count) of a prepared record, times from its first row.
+Prepared slice(const Prepared& p, int first, int count) {
+  const int c = static_cast<int>(p.y.cols());
+  Prepared w = p;
+  w.t_s = p.t_s.segment(first, count);
+  w.tau_s = w.t_s.array() - w.t_s(0);
+  w.y = p.y.middleRows(first, count);
+  w.yw = p.yw.segment(static_cast<Eigen::Index>(first) * c, static_cast<Eigen::Index>(count) * c);
+  return w;
+}
+
+// Design (a): a fit of its own for the window of sliding_window_s centred on each fitted sample,
+// omega_j and alpha_j linear in time within it (coefficients at the centre and slopes), constant
+// complex mode shapes, the same real terms as the start; each window starts from the previous
+// one's solution (moved by one sample), the first from the window's matrix pencil. No priors:
+// each window's estimate is its own. Outputs at the window centres.
+DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& options,
+                              const StartPencils& pencils, int real, DampedModesResult result) {
+  const int n = static_cast<int>(p.y.rows());
+  const int c = static_cast<int>(p.y.cols());
+  const int modes = options.modes;
+  const int half = static_cast<int>(std::lround(0.5 * options.sliding_window_s * p.rate_hz));
+  const int width = 2 * half + 1;
+  const int windows = n - 2 * half;
+  if (windows < 1 || width < 2 * (2 * modes + real) + 2) {
+    throw InputError("modal fit: sliding_window_s = " + std::to_string(options.sliding_window_s) +
+                     " s needs " + std::to_string(std::max(width, 2 * (2 * modes + real) + 2)) +
+                     " samples at " + std::to_string(p.rate_hz) + " Hz and fewer than the " +
+                     std::to_string(n) + " fitted ones");
+  }
+  const double dt = 1.0 / p.rate_hz, centre = half * dt;
+  // Running integrals from the window's first sample of the basis 1, tau - centre (s, s^2).
+  const Eigen::VectorXd tau = Eigen::VectorXd::LinSpaced(width, 0.0, (width - 1) * dt);
+  Eigen::MatrixXd integrals(width, 2);
+  integrals.col(0) = tau;
+  integrals.col(1) =
+      0.5 * ((tau.array() - centre).square() - centre * centre).matrix();
+  const Eigen::MatrixXd constant = Eigen::MatrixXd::Ones(width, 1);
+  const Eigen::MatrixXd no_prior(0, 4 * modes);
+  std::vector<LinearTerm> terms;
+  for (int j = 0; j < modes; ++j)
+    for (int k = 0; k < c; ++k) terms.push_back({j, Eigen::VectorXcd::Unit(c, k), 0});
+
+  // Start: the first window's pencil (the global one if it fails), slopes zero.
+  Eigen::VectorXd theta = Eigen::VectorXd::Zero(4 * modes + real);
+  {
+    MatrixPencilOptions po;
+    po.modes = modes;
+    po.real_poles = real;
+    MatrixPencilResult first = estimate_matrix_pencil(p.y.topRows(width), p.rate_hz, po);
+    if (!first.status.ok) first = pencils.global;
+    for (int j = 0; j < modes; ++j) {
+      // The pencil's values are at the window's first sample; constant over it.
+      theta(4 * j) = first.alpha_per_s(j);
+      theta(4 * j + 2) = first.omega_rad_per_s(j);
+    }
+    theta.tail(real) = first.real_rate_per_s;
+  }
+
+  result.t_s = p.t_s.segment(half, windows);
+  result.data = p.y.middleRows(half, windows);
+  result.fitted = Eigen::MatrixXd::Zero(windows, c);
+  result.converged = true;
+  std::vector<ModeTrack> tracks(modes);
+  for (ModeTrack& mt : tracks) {
+    mt.frequency_hz.resize(windows);
+    mt.omega_rad_per_s.resize(windows);
+    mt.omega_dot_rad_per_s2.resize(windows);
+    mt.alpha_per_s.resize(windows);
+    mt.alpha_dot_per_s2.resize(windows);
+    mt.shape.resize(windows, c);
+    mt.envelope.resize(windows, c);
+    mt.phase_rad.resize(windows, c);
+    mt.log_envelope_rate_per_s.resize(windows, c);
+    mt.anr_db.resize(windows);
+    mt.frequency_sd_hz.resize(windows);
+    mt.alpha_sd_per_s.resize(windows);
+    mt.valid.resize(windows);
+  }
+  Eigen::MatrixXd real_amplitude = Eigen::MatrixXd::Zero(c, real);
+  Eigen::VectorXd real_rate_sd = Eigen::VectorXd::Zero(real);
+  int failed = 0;
+  double residual_ss = 0.0;
+  const Eigen::MatrixXd lower = p.cholesky;
+  for (int t = 0; t < windows; ++t) {
+    const Prepared w = slice(p, t, width);
+    const VpProblem problem(w, modes, integrals, constant, terms, {}, 0.0, no_prior, DecayTie{},
+                            real);
+    Eigen::VectorXd candidate = theta;
+    StageOutcome o = solve(problem, candidate, options.max_iterations);
+    result.iterations += o.iterations;
+    // A window whose fit left the previous one's tracks (a frequency moved by more than
+    // 0.25 Hz, or is no longer positive) is fitted again from its own matrix pencil, and the
+    // better of the two fits kept.
+    auto jumped = [&](const Eigen::VectorXd& x) {
+      for (int j = 0; j < modes; ++j) {
+        if (!(x(4 * j + 2) > 0.0) || std::abs(x(4 * j + 2) - theta(4 * j + 2)) > 2.0 * M_PI * 0.25)
+          return true;
+      }
+      return false;
+    };
+    if (t > 0 && (!o.usable || jumped(candidate))) {
+      MatrixPencilOptions po;
+      po.modes = modes;
+      po.real_poles = real;
+      const MatrixPencilResult own = estimate_matrix_pencil(w.y, p.rate_hz, po);
+      if (own.status.ok) {
+        Eigen::VectorXd restart = Eigen::VectorXd::Zero(theta.size());
+        for (int j = 0; j < modes; ++j) {
+          restart(4 * j) = own.alpha_per_s(j);
+          restart(4 * j + 2) = own.omega_rad_per_s(j);
+        }
+        restart.tail(real) = own.real_rate_per_s;
+        const StageOutcome again = solve(problem, restart, options.max_iterations);
+        result.iterations += again.iterations;
+        std::vector<double> r1(problem.residuals()), r2(problem.residuals());
+        const bool first_ok = o.usable && problem.evaluate(candidate.data(), r1.data(), nullptr, nullptr);
+        const bool second_ok = again.usable && problem.evaluate(restart.data(), r2.data(), nullptr, nullptr);
+        auto cost = [](const std::vector<double>& r) {
+          double sum = 0.0;
+          for (const double v : r) sum += v * v;
+          return sum;
+        };
+        if (second_ok && (!first_ok || cost(r2) < cost(r1))) {
+          candidate = restart;
+          o = again;
+        }
+      }
+    }
+    Eigen::VectorXd beta, residual(problem.residuals());
+    RowMajor jacobian(problem.residuals(), problem.parameters());
+    const bool ok = o.usable && problem.evaluate(candidate.data(), residual.data(),
+                                                 jacobian.data(), &beta);
+    if (!ok) {
+      ++failed;
+      candidate = theta;  // carry the previous window's tracks over this one
+    }
+    const bool converged = ok && o.converged;
+    result.converged = result.converged && converged;
+    Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(problem.parameters(), problem.parameters());
+    if (ok) {
+      const int rows = problem.data_rows();
+      const double chi2 =
+          residual.head(rows).squaredNorm() / std::max(1, rows - problem.linear() - problem.parameters());
+      covariance = std::max(1.0, chi2) *
+                   Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(
+                       jacobian.transpose() * jacobian)
+                       .pseudoInverse();
+    }
+    for (int j = 0; j < modes; ++j) {
+      ModeTrack& mt = tracks[j];
+      const double a0 = candidate(4 * j), a1 = candidate(4 * j + 1);
+      const double w0 = candidate(4 * j + 2), w1 = candidate(4 * j + 3);
+      mt.alpha_per_s(t) = a0;
+      mt.alpha_dot_per_s2(t) = a1;
+      mt.omega_rad_per_s(t) = w0;
+      mt.omega_dot_rad_per_s2(t) = w1;
+      mt.frequency_hz(t) = w0 / (2.0 * M_PI);
+      mt.alpha_sd_per_s(t) = std::sqrt(std::max(0.0, covariance(4 * j, 4 * j)));
+      mt.frequency_sd_hz(t) =
+          std::sqrt(std::max(0.0, covariance(4 * j + 2, 4 * j + 2))) / (2.0 * M_PI);
+      // Whitened amplitude at the centre: c_jk exp(Phi_j(centre)), then channel units.
+      Eigen::VectorXcd white = Eigen::VectorXcd::Zero(c);
+      if (ok) {
+        const Complex phi(a0 * integrals(half, 0) + a1 * integrals(half, 1),
+                          w0 * integrals(half, 0) + w1 * integrals(half, 1));
+        for (int k = 0; k < c; ++k)
+          white(k) = Complex(beta(2 * (j * c + k)), beta(2 * (j * c + k) + 1)) * std::exp(phi);
+      }
+      const Eigen::VectorXcd amplitude = lower.cast<Complex>() * white;
+      mt.anr_db(t) = 10.0 * std::log10(0.5 * white.squaredNorm());
+      for (int k = 0; k < c; ++k) {
+        mt.envelope(t, k) = std::abs(amplitude(k));
+        double phase = std::arg(amplitude(k));
+        if (t > 0) {  // continuous: the nearest branch to the previous phase advanced by omega dt
+          const double predicted = mt.phase_rad(t - 1, k) + w0 * dt;
+          phase += 2.0 * M_PI * std::round((predicted - phase) / (2.0 * M_PI));
+        }
+        mt.phase_rad(t, k) = phase;
+        mt.shape(t, k) = amplitude(k);  // divided by exp(Phi(t)) below
+        mt.log_envelope_rate_per_s(t, k) = a0;
+        result.fitted(t, k) += amplitude(k).real();
+      }
+      mt.valid(t) = converged && mt.anr_db(t) >= options.anr_threshold_db &&
+                    mt.frequency_sd_hz(t) <= options.max_frequency_sd_hz && w0 > 0.0 &&
+                    std::isfinite(a0);
+    }
+    for (int r = 0; r < real; ++r) {
+      const double rate = candidate(4 * modes + r);
+      const Eigen::VectorXd b =
+          ok ? Eigen::VectorXd(lower * beta.segment(problem.complex_linear() + r * c, c))
+             : Eigen::VectorXd::Zero(c);
+      result.fitted.row(t) += std::exp(rate * centre) * b.transpose();
+      if (t == windows / 2) {  // reported: the middle window's term, at its own first sample
+        real_amplitude.col(r) = b;
+        real_rate_sd(r) = std::sqrt(std::max(0.0, covariance(4 * modes + r, 4 * modes + r)));
+      }
+    }
+    if (ok) {
+      const Eigen::VectorXd misfit = p.whiten * (result.data.row(t) - result.fitted.row(t)).transpose();
+      residual_ss += misfit.squaredNorm();
+    }
+    if (t == windows / 2) {
+      for (int r = 0; r < real; ++r) {
+        RealTerm term;
+        term.rate_per_s = candidate(4 * modes + r);
+        term.rate_sd_per_s = real_rate_sd(r);
+        term.amplitude = real_amplitude.col(r);
+        result.real_terms.push_back(term);
+      }
+    }
+    // The next window, one sample later: the centre values move along the slopes.
+    theta = candidate;
+    for (int j = 0; j < modes; ++j) {
+      theta(4 * j) += theta(4 * j + 1) * dt;
+      theta(4 * j + 2) += theta(4 * j + 3) * dt;
+    }
+  }
+  // Shapes as in the whole-record design: amplitude over exp(Phi(t)), Phi the running integral
+  // (trapezoid) of the centre tracks from the first centre.
+  for (ModeTrack& mt : tracks) {
+    double re = 0.0, im = 0.0;
+    for (int t = 0; t < windows; ++t) {
+      if (t > 0) {
+        re += 0.5 * dt * (mt.alpha_per_s(t - 1) + mt.alpha_per_s(t));
+        im += 0.5 * dt * (mt.omega_rad_per_s(t - 1) + mt.omega_rad_per_s(t));
+      }
+      mt.shape.row(t) *= std::exp(-Complex(re, im));
+    }
+  }
+  result.residual_rms_whitened = std::sqrt(residual_ss / std::max(1, (windows - failed) * c));
+  if (failed > 0) {
+    result.status = Status::failure("modal fit (sliding): " + std::to_string(failed) + " of " +
+                                    std::to_string(windows) + " windows could not be fitted");
+  }
+  if (!result.converged) {
+    result.warning = "modal fit (sliding): some windows did not converge in " +
+                     std::to_string(options.max_iterations) +
+                     " iterations; their samples are flagged invalid";
+  }
+  result.modes = std::move(tracks);
+  flag_degenerate_modes(slice(p, half, windows), options, result.modes);
+  std::stable_sort(result.modes.begin(), result.modes.end(), [](const auto& a, const auto& b) {
+    return a.omega_rad_per_s.mean() < b.omega_rad_per_s.mean();
+  });
+  return result;
+}
+
 }  // namespace
+
+ModalDesign parse_modal_design(const std::string& text) {
+  if (text == "whole") return ModalDesign::whole;
+  if (text == "sliding") return ModalDesign::sliding;
+  throw InputError("--design: unknown design '" + text + "'; expected whole or sliding");
+}
+
+std::string to_string(ModalDesign design) {
+  return design == ModalDesign::sliding ? "sliding" : "whole";
+}
 
 DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& deviation,
                                    double sample_rate_hz, double start_time_s, double onset_s,
@@ -608,6 +867,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
                                 : ""));
     return result;
   }
+  if (options.design == ModalDesign::sliding) return fit_sliding(p, options, pencils, real, result);
   const int m = track.size();
   const Eigen::MatrixXd integrals = track.integrals(p.tau_s);
   Eigen::VectorXd theta(2 * modes * m + real);

@@ -24,8 +24,21 @@
 
 namespace stiffid::estimators {
 
+/// The two designs of issue 7: (b) `whole`, the whole free response at once with spline tracks
+/// (the default), and (a) `sliding`, one fit per window of sliding_window_s around each fitted
+/// sample with locally linear omega_j, alpha_j and constant mode shapes (docs/tfa_modal.md).
+enum class ModalDesign { whole, sliding };
+
+/// "whole" or "sliding"; throws InputError otherwise.
+ModalDesign parse_modal_design(const std::string& text);
+std::string to_string(ModalDesign design);
+
 struct DampedModesOptions {
   int modes = 2;                        ///< n damped oscillations (degrees of freedom)
+  ModalDesign design = ModalDesign::whole;  ///< whole record (b) or sliding windows (a)
+  double sliding_window_s = 0.5;        ///< sliding design: window length, s (centred on each
+                                        ///< fitted sample; the first and last half window of the
+                                        ///< record have no estimate)
   double decimate_hz = 200.0;           ///< rate after zero-phase low-pass + decimation, Hz; <= 0:
                                         ///< keep the input rate (no filter)
   double skip_s = 0.025;                ///< after the onset, not free (the pulse), s; the fit also

@@ -297,6 +297,52 @@ BOOST_AUTO_TEST_CASE(a_real_exponential_beside_the_modes_is_a_real_term) {
   BOOST_CHECK_SMALL(noisy.real_terms[0].rate_per_s - beta, 3.0 * noisy.real_terms[0].rate_sd_per_s);
 }
 
+BOOST_AUTO_TEST_CASE(the_sliding_design_is_exact_on_locally_linear_tracks) {
+  // Design (a): omega_j constant and alpha_j linear in time are exactly what each window's model
+  // holds, so noise-free every window recovers them (to the decimation filter's effect, as in
+  // the first test); its estimates start half a window after the whole-record fit's and end half
+  // a window before.
+  const auto [m1, m2] = spline_exact_modes();
+  const Eigen::MatrixXd x = response({m1, m2});
+  DampedModesOptions sliding;
+  sliding.design = stiffid::estimators::ModalDesign::sliding;
+  const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, sliding);
+  const DampedModesResult whole = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  BOOST_CHECK(r.converged);
+  const Eigen::Index half = std::lround(0.25 * r.rate_hz);
+  BOOST_CHECK_EQUAL(r.t_s.size(), whole.t_s.size() - 2 * half);
+  BOOST_CHECK_SMALL(r.t_s(0) - whole.t_s(half), 1e-12);
+  for (int j = 0; j < 2; ++j) {
+    const Errors e = track_errors(r, j, j == 0 ? m1 : m2, 2.6, 4.6);
+    BOOST_TEST_MESSAGE("sliding, mode " << j << ": f " << e.f_rel << ", alpha " << e.alpha_rel);
+    BOOST_CHECK_SMALL(e.f_rel, 1e-5);
+    BOOST_CHECK_SMALL(e.alpha_rel, 1e-3);
+    // Valid while a 0.5 s window pins the frequency to the 0.1 Hz SD of the validity rule (at the
+    // 40 dB floor of noise-free data, until the weak mode's ANR falls below ~27 dB, 3.3 s): the
+    // window's posterior is that of half a second of data, the whole-record fit's of all of it.
+    const Errors early = track_errors(r, j, j == 0 ? m1 : m2, 2.6, 3.2);
+    BOOST_CHECK_EQUAL(early.valid, early.samples);
+    // The slopes are the tracks' derivatives: d alpha / dt = -0.4 and 0.3 1/s^2.
+    const double slope = j == 0 ? -0.4 : 0.3;
+    BOOST_CHECK_SMALL(r.modes[j].alpha_dot_per_s2(r.t_s.size() / 2) - slope, 1e-3);
+    BOOST_CHECK_SMALL(r.modes[j].omega_dot_rad_per_s2(r.t_s.size() / 2), 1e-3);
+  }
+  // The mode shapes of the truth (eqs 37-42).
+  for (Eigen::Index i = 0; i < r.t_s.size(); i += 50) {
+    BOOST_CHECK_SMALL(std::abs(r.modes[0].shape(i, 1) / r.modes[0].shape(i, 0) - m1.a1 / m1.a0), 1e-4);
+    BOOST_CHECK_SMALL(std::abs(r.modes[1].shape(i, 1) / r.modes[1].shape(i, 0) - m2.a1 / m2.a0), 1e-4);
+  }
+  // The model reproduces the data at the window centres.
+  BOOST_CHECK_SMALL((r.fitted - r.data).norm() / r.data.norm(), 1e-4);
+  DampedModesOptions bad = sliding;
+  bad.sliding_window_s = 0.0;
+  BOOST_CHECK_THROW(fit_damped_modes(x, kRateHz, 0.0, kOnsetS, bad), InputError);
+  bad.sliding_window_s = 10.0;  // longer than the free response
+  BOOST_CHECK_THROW(fit_damped_modes(x, kRateHz, 0.0, kOnsetS, bad), InputError);
+  BOOST_CHECK_THROW(stiffid::estimators::parse_modal_design("windows"), InputError);
+}
+
 BOOST_AUTO_TEST_CASE(a_mode_sinking_into_the_noise_is_flagged_invalid) {
   // The weak mode decays fast (alpha -6 1/s) and is lost in the 10 dB noise within ~0.5 s: its
   // track must be flagged invalid there, and wherever it is flagged valid it must be right.

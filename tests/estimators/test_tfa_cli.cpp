@@ -92,6 +92,22 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
                     2);
   BOOST_CHECK(!fs::exists(map));
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --method wavelet"), 2);
+  BOOST_CHECK_EQUAL(j["options"]["design"], "whole");
+  // Design (a), sliding windows: the same keys, estimates from half a window after the first
+  // fitted sample to half a window before the last.
+  const fs::path sliding = scratch("sliding.json");
+  BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --design sliding "
+                          "--sliding-window-s 0.5 -o " + sliding.string()),
+                      0);
+  std::ifstream sin(sliding);
+  const nlohmann::json s = nlohmann::json::parse(sin);
+  BOOST_CHECK_EQUAL(s["options"]["design"], "sliding");
+  BOOST_CHECK_CLOSE(s["options"]["sliding_window_s"].get<double>(), 0.5, 1e-12);
+  BOOST_CHECK_CLOSE(s["t_s"][0].get<double>() - j["t_s"][0].get<double>(), 0.25, 1e-6);
+  BOOST_CHECK_EQUAL(s["t_s"].size(), frames - 100);
+  BOOST_CHECK_EQUAL(s["K_nm_per_rad"][0][0].size(), s["t_s"].size());
+  BOOST_CHECK_CLOSE(s["K_nm_per_rad"][0][0][s["t_s"].size() / 4].get<double>(), 35.0, 2.0);
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --design windows"), 2);
 }
 
 BOOST_AUTO_TEST_CASE(bad_input_exits_2_without_writing) {
