@@ -856,6 +856,12 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // oscillatory poles and the real ones (docs/tfa_modal.md, "Real terms").
   const int max_real = options.real_terms >= 0 ? options.real_terms : 2 * modes;
   int real = std::max(0, options.real_terms);
+  if (2 * (2 * modes + real) + 2 > n) {
+    throw InputError("modal fit: real_terms (--real-terms) " + std::to_string(real) + " with " +
+                     std::to_string(modes) + " modes needs at least " +
+                     std::to_string(2 * (2 * modes + real) + 2) + " fitted samples; the record has " +
+                     std::to_string(n));
+  }
   StartPencils pencils = start_pencils(p, track, options, real);
   while (!pencils.global.status.ok && real < max_real && 2 * (2 * modes + real + 1) + 2 <= n)
     pencils = start_pencils(p, track, options, ++real);

@@ -118,6 +118,8 @@ BOOST_AUTO_TEST_CASE(bad_input_exits_2_without_writing) {
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset soon -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset auto -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --window blackman -o " + out.string()), 2);
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --real-terms 1000 -o " + out.string()), 2);
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --design sliding --sliding-window-s -1 -o " + out.string()), 2);
   const fs::path spec = scratch("subject.json");
   std::ofstream(spec) << "{\"l1_m\": 0.3, \"mass\": 2}";
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --subject " + spec.string() +
