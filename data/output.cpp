@@ -5,8 +5,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <vector>
 
 #include "data/error.hpp"
+#include "data/parallel.hpp"
 
 namespace stiffid::data {
 
@@ -32,11 +34,55 @@ void write_file_atomically(const std::string& path, const std::string& content) 
   }
 }
 
+std::string dump_json(const nlohmann::json& value) {
+  if (!value.is_object() || value.size() < 2) return value.dump(2);
+  // nlohmann's indented object: "{\n", then per member two spaces, the quoted key, ": " and the
+  // member's own indented text with every line after its first moved in by two, ",\n" between
+  // members, "\n}". Strings hold no raw newline (they are escaped), so the only newlines of a
+  // member's text are its line breaks.
+  std::vector<const std::string*> keys;
+  std::vector<const nlohmann::json*> members;
+  for (auto it = value.begin(); it != value.end(); ++it) {
+    keys.push_back(&it.key());
+    members.push_back(&it.value());
+  }
+  std::vector<std::string> parts(members.size());
+  parallel_for_index(members.size(), [&](std::size_t k) {
+    const std::string text = members[k]->dump(2);
+    std::string& out = parts[k];
+    out.reserve(text.size() + text.size() / 8);
+    out += "  ";
+    out += nlohmann::json(*keys[k]).dump();
+    out += ": ";
+    for (std::size_t from = 0; from < text.size();) {
+      const std::size_t line_end = text.find('\n', from);
+      if (line_end == std::string::npos) {
+        out.append(text, from, std::string::npos);
+        break;
+      }
+      out.append(text, from, line_end + 1 - from);
+      out += "  ";
+      from = line_end + 1;
+    }
+  });
+  std::size_t size = 4;
+  for (const std::string& part : parts) size += part.size() + 2;
+  std::string text;
+  text.reserve(size);
+  text += "{\n";
+  for (std::size_t k = 0; k < parts.size(); ++k) {
+    text += parts[k];
+    text += k + 1 < parts.size() ? ",\n" : "\n";
+  }
+  text += '}';
+  return text;
+}
+
 void write_json(const std::string& path, const nlohmann::json& value) {
   if (path.empty() || path == "-") {
-    std::cout << value.dump(2) << '\n';
+    std::cout << dump_json(value) << '\n';
   } else {
-    std::string text = value.dump(2);
+    std::string text = dump_json(value);
     text += '\n';  // appended in place: no second copy of a multi-megabyte text
     write_file_atomically(path, text);
   }

@@ -827,16 +827,6 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
 
 }  // namespace
 
-ModalDesign parse_modal_design(const std::string& text) {
-  if (text == "whole") return ModalDesign::whole;
-  if (text == "sliding") return ModalDesign::sliding;
-  throw InputError("--design: unknown design '" + text + "'; expected whole or sliding");
-}
-
-std::string to_string(ModalDesign design) {
-  return design == ModalDesign::sliding ? "sliding" : "whole";
-}
-
 DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& deviation,
                                    double sample_rate_hz, double start_time_s, double onset_s,
                                    const DampedModesOptions& options) {

@@ -29,9 +29,16 @@ namespace stiffid::estimators {
 /// sample with locally linear omega_j, alpha_j and constant mode shapes (docs/tfa_modal.md).
 enum class ModalDesign { whole, sliding };
 
-/// "whole" or "sliding"; throws InputError otherwise.
-ModalDesign parse_modal_design(const std::string& text);
-std::string to_string(ModalDesign design);
+/// "whole" or "sliding"; throws InputError otherwise. (Inline: the command line parses it in
+/// programs that do not link the fit.)
+inline ModalDesign parse_modal_design(const std::string& text) {
+  if (text == "whole") return ModalDesign::whole;
+  if (text == "sliding") return ModalDesign::sliding;
+  throw InputError("--design: unknown design '" + text + "'; expected whole or sliding");
+}
+inline std::string to_string(ModalDesign design) {
+  return design == ModalDesign::sliding ? "sliding" : "whole";
+}
 
 struct DampedModesOptions {
   int modes = 2;                        ///< n damped oscillations (degrees of freedom)

@@ -22,6 +22,7 @@ RealFft::RealFft(int n, int batch) : n_(n), batch_(batch) {
   const std::lock_guard<std::mutex> lock(planner_mutex());
   real_ = fftw_alloc_real(static_cast<size_t>(n_) * batch_);
   complex_ = fftw_alloc_complex(static_cast<size_t>(bins()) * batch_);
+  std::memset(real_, 0, sizeof(double) * static_cast<size_t>(n_) * batch_);
   // Column-major batches: column c of the real block starts at c*n, of the complex block at c*bins.
   forward_plan_ = fftw_plan_many_dft_r2c(1, &n_, batch_, real_, nullptr, 1, n_, complex_, nullptr, 1,
                                          bins(), FFTW_ESTIMATE);

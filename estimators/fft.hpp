@@ -7,6 +7,7 @@
 #include <fftw3.h>
 
 #include <Eigen/Core>
+#include <complex>
 
 namespace stiffid::estimators {
 
@@ -27,6 +28,15 @@ class RealFft {
   /// x[t] = (1/n) sum_k X[k] exp(+2 pi i k t / n) over the full Hermitian spectrum, for each column:
   /// (bins x batch) -> (n x batch). Inverse of forward.
   Eigen::MatrixXd inverse(const Eigen::Ref<const Eigen::MatrixXcd>& spectrum);
+
+  /// In place, without copies: fill the plan's input (column c at input() + c * size()), run
+  /// forward_in_place(), read the spectra (column c at output() + c * bins()). Same numbers as
+  /// forward().
+  double* input() { return real_; }
+  void forward_in_place() { fftw_execute(forward_plan_); }
+  const std::complex<double>* output() const {
+    return reinterpret_cast<const std::complex<double>*>(complex_);
+  }
 
  private:
   int n_;

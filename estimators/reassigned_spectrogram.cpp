@@ -113,11 +113,9 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
   data::parallel_for_groups(chunks, std::min(2, chunks), [&](std::size_t, int chunk_begin,
                                                              int chunk_end) {
     RealFft fft(n_fft, per_frame * chunk_frames);
-    Eigen::MatrixXd chunk(n_fft, per_frame * chunk_frames);
     for (int index = chunk_begin; index < chunk_end; ++index) {
       const int first = index * chunk_frames;
       const int count = std::min(chunk_frames, frames - first);
-      chunk.setZero();
       for (int f = 0; f < count; ++f) {
         const int m = first + f;
         const SampledWindow::Cut cut = r.sampled->cut(r.offset_lo(m), r.offset_hi(m));
@@ -126,8 +124,13 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
           for (int p = 0; p < parts; ++p) {
             const Eigen::MatrixXd& x = p == 0 ? signal.real : signal.imag;
             for (int ch = 0; ch < channels; ++ch) {
-              // Offset n goes to FFT index n mod N: the negative offsets wrap to the end.
-              double* col = chunk.col(f * per_frame + (w * parts + p) * channels + ch).data();
+              // Offset n goes to FFT index n mod N: the negative offsets wrap to the end, and
+              // the indices between the window's two ends are zero.
+              double* col = fft.input() + static_cast<std::ptrdiff_t>(
+                                              f * per_frame + (w * parts + p) * channels + ch) *
+                                              n_fft;
+              std::fill(col + cut.hi + 1, col + n_fft + std::min(cut.lo, 0), 0.0);
+              if (cut.lo > 0) std::fill(col, col + cut.lo, 0.0);
               const double* window = windows[w]->data();
               const double* samples = &x(r.centre(m) + cut.lo, ch);
               for (int i = 0; i < cut.h.size(); ++i) {
@@ -138,10 +141,13 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
           }
         }
       }
-      const Eigen::MatrixXcd spectra = fft.forward(chunk);
+      // Columns of frames past the end of the last chunk hold earlier data: transformed, not read.
+      fft.forward_in_place();
       for (int f = 0; f < count; ++f) {
         for (int q = 0; q < per_frame; ++q) {
-          band[q].col(first + f) = spectra.col(f * per_frame + q).segment(k_lo, bins);
+          const std::complex<double>* spectrum =
+              fft.output() + static_cast<std::ptrdiff_t>(f * per_frame + q) * fft.bins() + k_lo;
+          std::copy(spectrum, spectrum + bins, band[q].col(first + f).data());
         }
       }
     }
@@ -158,15 +164,28 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
     r.stft.push_back(block(0, ch));
     r.stft_time.push_back(block(1, ch));
     r.stft_derivative.push_back(block(2, ch));
-    const Eigen::MatrixXcd& xh = r.stft.back();
-    const Eigen::MatrixXcd& xt = r.stft_time.back();
-    const Eigen::MatrixXcd& xd = r.stft_derivative.back();
-    Eigen::MatrixXd t_hat(bins, frames), f_hat(bins, frames), a_hat(bins, frames);
-    const double floor = 1e-24 * std::max(1e-300, xh.cwiseAbs2().maxCoeff());
+  }
+  r.reassigned_time_s.assign(channels, Eigen::MatrixXd(bins, frames));
+  r.reassigned_frequency_hz.assign(channels, Eigen::MatrixXd(bins, frames));
+  r.decay_rate_per_s.assign(channels, Eigen::MatrixXd(bins, frames));
+  // Reassignment of every bin, the channels in parallel; then the power maps summed in channel,
+  // frame, bin order (the same sums at any thread count). target: the bin's reassigned cell
+  // kk + mm * bins, or -1 (no energy, or outside the map).
+  std::vector<Eigen::MatrixXd> power(channels);
+  std::vector<std::vector<long>> target(channels);
+  data::parallel_for_index(channels, [&](std::size_t c) {
+    const Eigen::MatrixXcd& xh = r.stft[c];
+    const Eigen::MatrixXcd& xt = r.stft_time[c];
+    const Eigen::MatrixXcd& xd = r.stft_derivative[c];
+    Eigen::MatrixXd& t_hat = r.reassigned_time_s[c];
+    Eigen::MatrixXd& f_hat = r.reassigned_frequency_hz[c];
+    Eigen::MatrixXd& a_hat = r.decay_rate_per_s[c];
+    power[c] = xh.cwiseAbs2();
+    target[c].assign(static_cast<std::size_t>(bins) * frames, -1);
+    const double floor = 1e-24 * std::max(1e-300, power[c].maxCoeff());
     for (int m = 0; m < frames; ++m) {
       for (int k = 0; k < bins; ++k) {
-        const double p = std::norm(xh(k, m));
-        r.power(k, m) += p;
+        const double p = power[c](k, m);
         if (p <= floor) {  // no energy: nothing to reassign
           t_hat(k, m) = r.time_s(m);
           f_hat(k, m) = r.frequency_hz(k);
@@ -179,12 +198,19 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
         a_hat(k, m) = -std::real(rd);
         const long mm = std::lround((t_hat(k, m) - r.time_s(0)) / r.hop_s);
         const long kk = std::lround((f_hat(k, m) - r.frequency_hz(0)) / df);
-        if (mm >= 0 && mm < frames && kk >= 0 && kk < bins) r.reassigned_power(kk, mm) += p;
+        if (mm >= 0 && mm < frames && kk >= 0 && kk < bins) {
+          target[c][static_cast<std::size_t>(m) * bins + k] = kk + mm * bins;
+        }
       }
     }
-    r.reassigned_time_s.push_back(std::move(t_hat));
-    r.reassigned_frequency_hz.push_back(std::move(f_hat));
-    r.decay_rate_per_s.push_back(std::move(a_hat));
+  });
+  for (int ch = 0; ch < channels; ++ch) {
+    r.power += power[ch];
+    double* reassigned = r.reassigned_power.data();
+    const double* p = power[ch].data();
+    for (std::size_t i = 0; i < target[ch].size(); ++i) {
+      if (target[ch][i] >= 0) reassigned[target[ch][i]] += p[i];
+    }
   }
   return r;
 }

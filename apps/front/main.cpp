@@ -1,9 +1,11 @@
-// `stiffid`: the program users call. It runs `frf` and `irf` itself and hands every other command
-// line (the other subcommands, --help, --version, mistakes) unchanged to `stiffid-full`, the
+// `stiffid`: the program users call. It runs `frf`, `irf` and `tfa --method spectrogram` itself
+// and hands every other command line (the other subcommands, the modal tfa, --help, --version,
+// mistakes) unchanged to `stiffid-full`, the
 // program next to it with every subcommand (apps/main.cpp), by exec: same arguments, same
 // standard streams, same exit code. Linked with the estimators alone (no Ceres, Ipopt, NLopt, MPI
 // or SQLite), this program loads 8 shared libraries instead of 38 and starts in ~2 ms instead of
-// ~8 ms, which is a few per cent of a 10-minute trial's frf or irf.
+// ~8 ms, which is a few per cent of a 10-minute trial's frf or irf and a tenth of a spectrogram
+// tfa. Its tfa is apps/cmd_tfa.cpp and estimators/tfa.cpp built without the modal method.
 #include <unistd.h>
 
 #include <cerrno>
@@ -27,6 +29,24 @@ std::string full_program(const char* argv0) {
   return (self.parent_path() / "stiffid-full").string();
 }
 
+// `tfa ... --method spectrogram ...` (or --method=spectrogram), the method named once.
+bool spectrogram_tfa(int argc, char** argv) {
+  if (argc < 2 || std::string(argv[1]) != "tfa") return false;
+  int methods = 0;
+  bool spectrogram = false;
+  for (int i = 2; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--method") {
+      ++methods;
+      spectrogram = i + 1 < argc && std::string(argv[i + 1]) == "spectrogram";
+    } else if (arg.rfind("--method=", 0) == 0) {
+      ++methods;
+      spectrogram = arg == "--method=spectrogram";
+    }
+  }
+  return methods == 1 && spectrogram;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -37,6 +57,11 @@ int main(int argc, char** argv) {
       stiffid::apps::add_frf_command(app);
       stiffid::apps::add_irf_command(app);
     });
+  }
+  if (spectrogram_tfa(argc, argv)) {
+    stiffid::data::keep_large_blocks_for_reuse();
+    return stiffid::apps::run_cli(argc, argv,
+                                  [](CLI::App& app) { stiffid::apps::add_tfa_command(app); });
   }
   const std::string full = full_program(argv[0]);
   execv(full.c_str(), argv);  // argv[0] kept: usage lines name `stiffid` as typed

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "data/csv.hpp"
@@ -99,6 +100,22 @@ BOOST_AUTO_TEST_CASE(written_trial_reads_back_bit_exact) {
   BOOST_CHECK(back.samples == trial.samples);
   BOOST_CHECK_EQUAL(back.units[0], "rad");
   std::filesystem::remove(path);
+}
+
+BOOST_AUTO_TEST_CASE(json_text_is_nlohmanns_indented_dump_byte_for_byte) {
+  // dump_json formats an object's members in parallel; its text must be exactly dump(2)'s:
+  // nested objects and arrays, empty ones, escaped keys and strings, numbers of every kind.
+  const nlohmann::json value = nlohmann::json::parse(R"({
+    "t_s": [2.5, 2.5025, 1e-300, -0.0, 12345678901234567890, 3],
+    "K_nm_per_rad": [[[35.0, 35.1], []], [[5.5], [20.25, {"a": [1, {"b": {}}]}]]],
+    "options": {"window": "kaiser:3", "angles": ["th1", "th2"], "flag": true, "none": null},
+    "quote\"key\n": "line\nbreak \u00e9 \t tab",
+    "empty_object": {}, "empty_array": [], "number": -1.5e-7})");
+  BOOST_CHECK_EQUAL(d::dump_json(value), value.dump(2));
+  for (const char* text : {"{}", "[]", "[1, 2]", "{\"one\": [1]}", "3.5", "\"s\""}) {
+    const nlohmann::json v = nlohmann::json::parse(text);
+    BOOST_CHECK_EQUAL(d::dump_json(v), v.dump(2));
+  }
 }
 
 BOOST_AUTO_TEST_CASE(atomic_write_leaves_no_temporary_and_fails_cleanly) {
