@@ -105,7 +105,8 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
   const int per_frame = 3 * parts * channels;
   constexpr int kChunkFrames = 16;
   const int chunk_frames = std::min(kChunkFrames, frames);
-  std::vector<Eigen::MatrixXcd> band(per_frame, Eigen::MatrixXcd(bins, frames));
+  std::vector<Eigen::MatrixXcd> band(per_frame);  // filled by the transforms below: not copied
+  for (Eigen::MatrixXcd& b : band) b.resize(bins, frames);  // from a prototype, not zeroed
   r.sampled = std::make_shared<const SampledWindow>(options.window, half, dt);
   // Two fixed groups of chunks (one per core of a small machine), each with its own plan and
   // buffers; every frame's transforms are the same whichever group makes them.
