@@ -770,8 +770,8 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
           ok ? Eigen::VectorXd(lower * beta.segment(problem.complex_linear() + r * c, c))
              : Eigen::VectorXd::Zero(c);
       result.fitted.row(t) += std::exp(rate * centre) * b.transpose();
-      if (t == windows / 2) {  // reported: the middle window's term, at its own first sample
-        real_amplitude.col(r) = b;
+      if (t == windows / 2) {  // reported: the middle window's term, moved to t_s[0]
+        real_amplitude.col(r) = std::exp(rate * (p.t_s(half) - p.t_s(t))) * b;
         real_rate_sd(r) = std::sqrt(std::max(0.0, covariance(4 * modes + r, 4 * modes + r)));
       }
     }
