@@ -145,9 +145,16 @@ class VpProblem {
             const Eigen::MatrixXd& functions, std::vector<LinearTerm> terms,
             std::vector<std::pair<int, int>> penalized_pairs, double shape_weight,
             const Eigen::MatrixXd& prior_rows, DecayTie tie, int real_terms)
-      : p_(p), modes_(modes), ig_(phase_integrals), f_(functions), terms_(std::move(terms)),
-        pairs_(std::move(penalized_pairs)), sqrt_weight_(std::sqrt(shape_weight)),
-        prior_(prior_rows), tie_(std::move(tie)), real_(real_terms) {}
+      : p_(p),
+        modes_(modes),
+        ig_(phase_integrals),
+        f_(functions),
+        terms_(std::move(terms)),
+        pairs_(std::move(penalized_pairs)),
+        sqrt_weight_(std::sqrt(shape_weight)),
+        prior_(prior_rows),
+        tie_(std::move(tie)),
+        real_(real_terms) {}
 
   int basis() const { return static_cast<int>(ig_.cols()); }
   int track_parameters() const { return 2 * modes_ * basis(); }
@@ -169,8 +176,7 @@ class VpProblem {
     er.resize(p_.tau_s.size(), real_);
     for (int r = 0; r < real_; ++r) {
       const double beta = theta[first_rate() + r];
-      if (!std::isfinite(beta) || beta * p_.tau_s(p_.tau_s.size() - 1) > 600.0)
-        return false;
+      if (!std::isfinite(beta) || beta * p_.tau_s(p_.tau_s.size() - 1) > 600.0) return false;
       er.col(r) = (beta * p_.tau_s.array()).exp().matrix();
     }
     return true;
@@ -383,9 +389,9 @@ StartPencils start_pencils(const Prepared& p, const UniformCubicBspline& track,
                            const DampedModesOptions& o, int real_poles) {
   const int n = static_cast<int>(p.y.rows());
   StartPencils out;
-  out.window_samples = std::min(
-      n, std::max(2 * (2 * o.modes + real_poles) + 2,
-                  static_cast<int>(std::lround(o.init_window_s * p.rate_hz))));
+  out.window_samples =
+      std::min(n, std::max(2 * (2 * o.modes + real_poles) + 2,
+                           static_cast<int>(std::lround(o.init_window_s * p.rate_hz))));
   const int hop = std::max(1, static_cast<int>(std::lround(track.spacing_s() * p.rate_hz)));
   for (int first = 0; first + out.window_samples <= n; first += hop) out.first.push_back(first);
   out.window.resize(out.first.size());
@@ -429,8 +435,9 @@ Eigen::VectorXd start_tracks(const Prepared& p, const UniformCubicBspline& track
       // noise) and its pole j is another mode's.
       bool nearer_other = false;
       for (int i = 0; i < modes; ++i) {
-        nearer_other = nearer_other || (i != j && std::abs(w.omega_rad_per_s(j) - last_omega(i)) <
-                                                      std::abs(w.omega_rad_per_s(j) - last_omega(j)));
+        nearer_other =
+            nearer_other || (i != j && std::abs(w.omega_rad_per_s(j) - last_omega(i)) <
+                                           std::abs(w.omega_rad_per_s(j) - last_omega(j)));
       }
       if (nearer_other) continue;
       centre[j].push_back(p.tau_s(first) + half_s);
@@ -612,8 +619,7 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
   const Eigen::VectorXd tau = Eigen::VectorXd::LinSpaced(width, 0.0, (width - 1) * dt);
   Eigen::MatrixXd integrals(width, 2);
   integrals.col(0) = tau;
-  integrals.col(1) =
-      0.5 * ((tau.array() - centre).square() - centre * centre).matrix();
+  integrals.col(1) = 0.5 * ((tau.array() - centre).square() - centre * centre).matrix();
   const Eigen::MatrixXd constant = Eigen::MatrixXd::Ones(width, 1);
   const Eigen::MatrixXd no_prior(0, 4 * modes);
   std::vector<LinearTerm> terms;
@@ -693,8 +699,10 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
         const StageOutcome again = solve(problem, restart, options.max_iterations);
         result.iterations += again.iterations;
         std::vector<double> r1(problem.residuals()), r2(problem.residuals());
-        const bool first_ok = o.usable && problem.evaluate(candidate.data(), r1.data(), nullptr, nullptr);
-        const bool second_ok = again.usable && problem.evaluate(restart.data(), r2.data(), nullptr, nullptr);
+        const bool first_ok =
+            o.usable && problem.evaluate(candidate.data(), r1.data(), nullptr, nullptr);
+        const bool second_ok =
+            again.usable && problem.evaluate(restart.data(), r2.data(), nullptr, nullptr);
         auto cost = [](const std::vector<double>& r) {
           double sum = 0.0;
           for (const double v : r) sum += v * v;
@@ -708,8 +716,8 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
     }
     Eigen::VectorXd beta, residual(problem.residuals());
     RowMajor jacobian(problem.residuals(), problem.parameters());
-    const bool ok = o.usable && problem.evaluate(candidate.data(), residual.data(),
-                                                 jacobian.data(), &beta);
+    const bool ok =
+        o.usable && problem.evaluate(candidate.data(), residual.data(), jacobian.data(), &beta);
     if (!ok) {
       ++failed;
       candidate = theta;  // carry the previous window's tracks over this one
@@ -719,12 +727,11 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
     Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(problem.parameters(), problem.parameters());
     if (ok) {
       const int rows = problem.data_rows();
-      const double chi2 =
-          residual.head(rows).squaredNorm() / std::max(1, rows - problem.linear() - problem.parameters());
-      covariance = std::max(1.0, chi2) *
-                   Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(
-                       jacobian.transpose() * jacobian)
-                       .pseudoInverse();
+      const double chi2 = residual.head(rows).squaredNorm() /
+                          std::max(1, rows - problem.linear() - problem.parameters());
+      covariance = std::max(1.0, chi2) * Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(
+                                             jacobian.transpose() * jacobian)
+                                             .pseudoInverse();
     }
     for (int j = 0; j < modes; ++j) {
       ModeTrack& mt = tracks[j];
@@ -776,7 +783,8 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
       }
     }
     if (ok) {
-      const Eigen::VectorXd misfit = p.whiten * (result.data.row(t) - result.fitted.row(t)).transpose();
+      const Eigen::VectorXd misfit =
+          p.whiten * (result.data.row(t) - result.fitted.row(t)).transpose();
       residual_ss += misfit.squaredNorm();
     }
     if (t == windows / 2) {
@@ -849,8 +857,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   if (2 * (2 * modes + real) + 2 > n) {
     throw InputError("modal fit: real_terms (--real-terms) " + std::to_string(real) + " with " +
                      std::to_string(modes) + " modes needs at least " +
-                     std::to_string(2 * (2 * modes + real) + 2) + " fitted samples; the record has " +
-                     std::to_string(n));
+                     std::to_string(2 * (2 * modes + real) + 2) +
+                     " fitted samples; the record has " + std::to_string(n));
   }
   StartPencils pencils = start_pencils(p, track, options, real);
   while (!pencils.global.status.ok && real < max_real && 2 * (2 * modes + real + 1) + 2 <= n)

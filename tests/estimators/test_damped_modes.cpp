@@ -277,7 +277,8 @@ BOOST_AUTO_TEST_CASE(a_real_exponential_beside_the_modes_is_a_real_term) {
   BOOST_TEST_MESSAGE("real term: rate " << r.real_terms[0].rate_per_s << " +- "
                                         << r.real_terms[0].rate_sd_per_s << " 1/s");
   BOOST_CHECK_CLOSE(r.real_terms[0].rate_per_s, beta, 1e-4 * 100);
-  BOOST_CHECK_SMALL((r.real_terms[0].amplitude - std::exp(beta * tau0) * b).norm(), 1e-4 * b.norm());
+  BOOST_CHECK_SMALL((r.real_terms[0].amplitude - std::exp(beta * tau0) * b).norm(),
+                    1e-4 * b.norm());
   check_exact_tracks(r, m1, m2);
   // The model includes the term: it reproduces the (filtered) data.
   BOOST_CHECK_SMALL((r.fitted - r.data).norm() / r.data.norm(), 1e-4);
@@ -330,8 +331,10 @@ BOOST_AUTO_TEST_CASE(the_sliding_design_is_exact_on_locally_linear_tracks) {
   }
   // The mode shapes of the truth (eqs 37-42).
   for (Eigen::Index i = 0; i < r.t_s.size(); i += 50) {
-    BOOST_CHECK_SMALL(std::abs(r.modes[0].shape(i, 1) / r.modes[0].shape(i, 0) - m1.a1 / m1.a0), 1e-4);
-    BOOST_CHECK_SMALL(std::abs(r.modes[1].shape(i, 1) / r.modes[1].shape(i, 0) - m2.a1 / m2.a0), 1e-4);
+    BOOST_CHECK_SMALL(std::abs(r.modes[0].shape(i, 1) / r.modes[0].shape(i, 0) - m1.a1 / m1.a0),
+                      1e-4);
+    BOOST_CHECK_SMALL(std::abs(r.modes[1].shape(i, 1) / r.modes[1].shape(i, 0) - m2.a1 / m2.a0),
+                      1e-4);
   }
   // The model reproduces the data at the window centres.
   BOOST_CHECK_SMALL((r.fitted - r.data).norm() / r.data.norm(), 1e-4);

@@ -131,8 +131,7 @@ BOOST_AUTO_TEST_CASE(real_poles_beside_the_oscillations_are_exact_noise_free) {
   BOOST_CHECK_SMALL(r.residual_rms, 1e-10);
   const Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(5, 0.0, 2.0);
   const Eigen::MatrixXd model = evaluate_damped_exponentials(r, t);
-  for (int i = 0; i < 5; ++i)
-    BOOST_CHECK_SMALL((model.row(i) - x.row(i * 100)).norm(), 1e-9);
+  for (int i = 0; i < 5; ++i) BOOST_CHECK_SMALL((model.row(i) - x.row(i * 100)).norm(), 1e-9);
 }
 
 BOOST_AUTO_TEST_CASE(rejects_bad_input_and_reports_non_oscillatory_data) {
