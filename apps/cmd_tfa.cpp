@@ -230,11 +230,9 @@ void run(TfaCommandOptions cli) {
     // creep of a Poynting-Thomson element); not modes, so not in K, C or the normalized force.
     nlohmann::json real_terms = nlohmann::json::array();
     for (const estimators::RealTerm& term : r.modes.real_terms) {
-      real_terms.push_back(
-          {{"rate_per_s", term.rate_per_s},
-           {"rate_sd_per_s", term.rate_sd_per_s},
-           {"amplitude_rad", std::vector<double>(term.amplitude.data(),
-                                                 term.amplitude.data() + term.amplitude.size())}});
+      real_terms.push_back({{"rate_per_s", term.rate_per_s},
+                            {"rate_sd_per_s", term.rate_sd_per_s},
+                            {"amplitude_rad", series(term.amplitude)}});
     }
     out["real_terms"] = real_terms;
     if (!r.modes.warning.empty()) std::cerr << "stiffid tfa: warning: " << r.modes.warning << '\n';

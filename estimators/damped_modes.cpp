@@ -351,6 +351,7 @@ struct StageOutcome {
   bool usable = false;
   bool converged = false;
   int iterations = 0;
+  double cost = 0.0;  // Ceres's final cost, half the sum of squared residuals
   std::string message;
 };
 
@@ -371,6 +372,7 @@ StageOutcome solve(const VpProblem& problem, Eigen::VectorXd& theta, int max_ite
   out.usable = summary.IsSolutionUsable();
   out.converged = summary.termination_type == ceres::CONVERGENCE;
   out.iterations = static_cast<int>(summary.iterations.size());
+  out.cost = summary.final_cost;
   out.message = summary.message;
   return out;
 }
@@ -390,7 +392,7 @@ StartPencils start_pencils(const Prepared& p, const UniformCubicBspline& track,
   const int n = static_cast<int>(p.y.rows());
   StartPencils out;
   out.window_samples =
-      std::min(n, std::max(2 * (2 * o.modes + real_poles) + 2,
+      std::min(n, std::max(matrix_pencil_min_samples(o.modes, real_poles),
                            static_cast<int>(std::lround(o.init_window_s * p.rate_hz))));
   const int hop = std::max(1, static_cast<int>(std::lround(track.spacing_s() * p.rate_hz)));
   for (int first = 0; first + out.window_samples <= n; first += hop) out.first.push_back(first);
@@ -584,6 +586,31 @@ void flag_degenerate_modes(const Prepared& p, const DampedModesOptions& options,
   }
 }
 
+// Posterior covariance of a fit's nonlinear parameters from its residuals and Jacobian at the
+// solution: (J^T J)^+ scaled by the reduced chi-square of the data rows when the residual exceeds
+// the pre-onset noise (model error or mis-estimated noise), never below it.
+Eigen::MatrixXd posterior_covariance(const VpProblem& problem, const Eigen::VectorXd& residual,
+                                     const RowMajor& jacobian) {
+  const int rows = problem.data_rows();
+  const double dof = std::max(1, rows - problem.linear() - problem.parameters());
+  const double chi2 = residual.head(rows).squaredNorm() / dof;
+  Eigen::MatrixXd info = Eigen::MatrixXd::Zero(problem.parameters(), problem.parameters());
+  info.selfadjointView<Eigen::Lower>().rankUpdate(jacobian.transpose());  // J^T J, one half
+  info.triangularView<Eigen::StrictlyUpper>() = info.transpose();
+  return std::max(1.0, chi2) *
+         Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(info).pseudoInverse();
+}
+
+// Both designs' last step: the validity checks the residual cannot make, then the modes in
+// ascending mean frequency.
+void finish_modes(const Prepared& p, const DampedModesOptions& options,
+                  std::vector<ModeTrack>& modes) {
+  flag_degenerate_modes(p, options, modes);
+  std::stable_sort(modes.begin(), modes.end(), [](const auto& a, const auto& b) {
+    return a.omega_rad_per_s.mean() < b.omega_rad_per_s.mean();
+  });
+}
+
 // Rows [first, first + count) of a prepared record, times from its first row.
 Prepared slice(const Prepared& p, int first, int count) {
   const int c = static_cast<int>(p.y.cols());
@@ -608,9 +635,10 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
   const int half = static_cast<int>(std::lround(0.5 * options.sliding_window_s * p.rate_hz));
   const int width = 2 * half + 1;
   const int windows = n - 2 * half;
-  if (windows < 1 || width < 2 * (2 * modes + real) + 2) {
+  const int needed = matrix_pencil_min_samples(modes, real);
+  if (windows < 1 || width < needed) {
     throw InputError("modal fit: sliding_window_s = " + std::to_string(options.sliding_window_s) +
-                     " s needs " + std::to_string(std::max(width, 2 * (2 * modes + real) + 2)) +
+                     " s needs " + std::to_string(std::max(width, needed)) +
                      " samples at " + std::to_string(p.rate_hz) + " Hz and fewer than the " +
                      std::to_string(n) + " fitted ones");
   }
@@ -626,21 +654,22 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
   for (int j = 0; j < modes; ++j)
     for (int k = 0; k < c; ++k) terms.push_back({j, Eigen::VectorXcd::Unit(c, k), 0});
 
-  // Start: the first window's pencil (the global one if it fails), slopes zero.
-  Eigen::VectorXd theta = Eigen::VectorXd::Zero(4 * modes + real);
-  {
-    MatrixPencilOptions po;
-    po.modes = modes;
-    po.real_poles = real;
-    MatrixPencilResult first = estimate_matrix_pencil(p.y.topRows(width), p.rate_hz, po);
-    if (!first.status.ok) first = pencils.global;
+  // A window's pencil as a start: its constant rates and frequencies, slopes zero.
+  MatrixPencilOptions po;
+  po.modes = modes;
+  po.real_poles = real;
+  auto pencil_start = [&](const MatrixPencilResult& pencil) {
+    Eigen::VectorXd start = Eigen::VectorXd::Zero(4 * modes + real);
     for (int j = 0; j < modes; ++j) {
-      // The pencil's values are at the window's first sample; constant over it.
-      theta(4 * j) = first.alpha_per_s(j);
-      theta(4 * j + 2) = first.omega_rad_per_s(j);
+      start(4 * j) = pencil.alpha_per_s(j);
+      start(4 * j + 2) = pencil.omega_rad_per_s(j);
     }
-    theta.tail(real) = first.real_rate_per_s;
-  }
+    start.tail(real) = pencil.real_rate_per_s;
+    return start;
+  };
+  // The first window's pencil, or the global one if it fails.
+  const MatrixPencilResult first = estimate_matrix_pencil(p.y.topRows(width), p.rate_hz, po);
+  Eigen::VectorXd theta = pencil_start(first.status.ok ? first : pencils.global);
 
   result.t_s = p.t_s.segment(half, windows);
   result.data = p.y.middleRows(half, windows);
@@ -662,8 +691,6 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
     mt.alpha_sd_per_s.resize(windows);
     mt.valid.resize(windows);
   }
-  Eigen::MatrixXd real_amplitude = Eigen::MatrixXd::Zero(c, real);
-  Eigen::VectorXd real_rate_sd = Eigen::VectorXd::Zero(real);
   int failed = 0;
   double residual_ss = 0.0;
   const Eigen::MatrixXd lower = p.cholesky;
@@ -685,30 +712,12 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
       return false;
     };
     if (t > 0 && (!o.usable || jumped(candidate))) {
-      MatrixPencilOptions po;
-      po.modes = modes;
-      po.real_poles = real;
       const MatrixPencilResult own = estimate_matrix_pencil(w.y, p.rate_hz, po);
       if (own.status.ok) {
-        Eigen::VectorXd restart = Eigen::VectorXd::Zero(theta.size());
-        for (int j = 0; j < modes; ++j) {
-          restart(4 * j) = own.alpha_per_s(j);
-          restart(4 * j + 2) = own.omega_rad_per_s(j);
-        }
-        restart.tail(real) = own.real_rate_per_s;
+        Eigen::VectorXd restart = pencil_start(own);
         const StageOutcome again = solve(problem, restart, options.max_iterations);
         result.iterations += again.iterations;
-        std::vector<double> r1(problem.residuals()), r2(problem.residuals());
-        const bool first_ok =
-            o.usable && problem.evaluate(candidate.data(), r1.data(), nullptr, nullptr);
-        const bool second_ok =
-            again.usable && problem.evaluate(restart.data(), r2.data(), nullptr, nullptr);
-        auto cost = [](const std::vector<double>& r) {
-          double sum = 0.0;
-          for (const double v : r) sum += v * v;
-          return sum;
-        };
-        if (second_ok && (!first_ok || cost(r2) < cost(r1))) {
+        if (again.usable && (!o.usable || again.cost < o.cost)) {
           candidate = restart;
           o = again;
         }
@@ -724,15 +733,9 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
     }
     const bool converged = ok && o.converged;
     result.converged = result.converged && converged;
-    Eigen::MatrixXd covariance = Eigen::MatrixXd::Zero(problem.parameters(), problem.parameters());
-    if (ok) {
-      const int rows = problem.data_rows();
-      const double chi2 = residual.head(rows).squaredNorm() /
-                          std::max(1, rows - problem.linear() - problem.parameters());
-      covariance = std::max(1.0, chi2) * Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(
-                                             jacobian.transpose() * jacobian)
-                                             .pseudoInverse();
-    }
+    const Eigen::MatrixXd covariance =
+        ok ? posterior_covariance(problem, residual, jacobian)
+           : Eigen::MatrixXd::Zero(problem.parameters(), problem.parameters());
     for (int j = 0; j < modes; ++j) {
       ModeTrack& mt = tracks[j];
       const double a0 = candidate(4 * j), a1 = candidate(4 * j + 1);
@@ -778,23 +781,17 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
              : Eigen::VectorXd::Zero(c);
       result.fitted.row(t) += std::exp(rate * centre) * b.transpose();
       if (t == windows / 2) {  // reported: the middle window's term, moved to t_s[0]
-        real_amplitude.col(r) = std::exp(rate * (p.t_s(half) - p.t_s(t))) * b;
-        real_rate_sd(r) = std::sqrt(std::max(0.0, covariance(4 * modes + r, 4 * modes + r)));
+        RealTerm term;
+        term.rate_per_s = rate;
+        term.rate_sd_per_s = std::sqrt(std::max(0.0, covariance(4 * modes + r, 4 * modes + r)));
+        term.amplitude = std::exp(rate * (p.t_s(half) - p.t_s(t))) * b;
+        result.real_terms.push_back(std::move(term));
       }
     }
     if (ok) {
       const Eigen::VectorXd misfit =
           p.whiten * (result.data.row(t) - result.fitted.row(t)).transpose();
       residual_ss += misfit.squaredNorm();
-    }
-    if (t == windows / 2) {
-      for (int r = 0; r < real; ++r) {
-        RealTerm term;
-        term.rate_per_s = candidate(4 * modes + r);
-        term.rate_sd_per_s = real_rate_sd(r);
-        term.amplitude = real_amplitude.col(r);
-        result.real_terms.push_back(term);
-      }
     }
     // The next window, one sample later: the centre values move along the slopes.
     theta = candidate;
@@ -826,10 +823,7 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
                      " iterations; their samples are flagged invalid";
   }
   result.modes = std::move(tracks);
-  flag_degenerate_modes(slice(p, half, windows), options, result.modes);
-  std::stable_sort(result.modes.begin(), result.modes.end(), [](const auto& a, const auto& b) {
-    return a.omega_rad_per_s.mean() < b.omega_rad_per_s.mean();
-  });
+  finish_modes(slice(p, half, windows), options, result.modes);
   return result;
 }
 
@@ -854,14 +848,15 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // oscillatory poles and the real ones (docs/tfa_modal.md, "Real terms").
   const int max_real = options.real_terms >= 0 ? options.real_terms : 2 * modes;
   int real = std::max(0, options.real_terms);
-  if (2 * (2 * modes + real) + 2 > n) {
+  if (matrix_pencil_min_samples(modes, real) > n) {
     throw InputError("modal fit: real_terms (--real-terms) " + std::to_string(real) + " with " +
                      std::to_string(modes) + " modes needs at least " +
-                     std::to_string(2 * (2 * modes + real) + 2) +
+                     std::to_string(matrix_pencil_min_samples(modes, real)) +
                      " fitted samples; the record has " + std::to_string(n));
   }
   StartPencils pencils = start_pencils(p, track, options, real);
-  while (!pencils.global.status.ok && real < max_real && 2 * (2 * modes + real + 1) + 2 <= n)
+  while (!pencils.global.status.ok && real < max_real &&
+         matrix_pencil_min_samples(modes, real + 1) <= n)
     pencils = start_pencils(p, track, options, ++real);
   result.start = pencils.global;
   if (!result.start.status.ok) {
@@ -1040,16 +1035,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
                      " iterations (" + outcome.message + "); every valid flag is false";
   }
   const int rd = fp.data_rows();
-  const double dof = std::max(1, rd - fp.linear() - fp.parameters());
-  const double chi2 = residual.head(rd).squaredNorm() / dof;
   result.residual_rms_whitened = std::sqrt(residual.head(rd).squaredNorm() / rd);
-  // Posterior covariance of the track coefficients, scaled by the reduced chi-square when the
-  // residual exceeds the pre-onset noise (model error or mis-estimated noise), never below it.
-  Eigen::MatrixXd info = Eigen::MatrixXd::Zero(fp.parameters(), fp.parameters());
-  info.selfadjointView<Eigen::Lower>().rankUpdate(jacobian.transpose());  // J^T J, one half
-  info.triangularView<Eigen::StrictlyUpper>() = info.transpose();
-  const Eigen::MatrixXd covariance =
-      std::max(1.0, chi2) * Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(info).pseudoInverse();
+  const Eigen::MatrixXd covariance = posterior_covariance(fp, residual, jacobian);
 
   Eigen::MatrixXcd e;
   fp.oscillations(theta.data(), e);
@@ -1135,10 +1122,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     result.fitted += er.col(r) * rt.amplitude.transpose();
     result.real_terms.push_back(std::move(rt));
   }
-  flag_degenerate_modes(p, options, result.modes);
-  std::stable_sort(result.modes.begin(), result.modes.end(), [](const auto& a, const auto& b) {
-    return a.omega_rad_per_s.mean() < b.omega_rad_per_s.mean();
-  });
+  finish_modes(p, options, result.modes);
   return result;
 }
 

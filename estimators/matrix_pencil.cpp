@@ -27,7 +27,7 @@ void check_inputs(const Eigen::Ref<const Eigen::MatrixXd>& samples, double sampl
     throw InputError("matrix pencil: real_poles must be at least 0, got " +
                      std::to_string(options.real_poles));
   if (samples.cols() < 1) throw InputError("matrix pencil: no channels");
-  const int needed = 2 * (2 * options.modes + options.real_poles) + 2;
+  const int needed = matrix_pencil_min_samples(options.modes, options.real_poles);
   if (samples.rows() < needed)
     throw InputError("matrix pencil: " + std::to_string(samples.rows()) + " samples cannot give " +
                      std::to_string(options.modes) + " modes and " +

@@ -43,6 +43,11 @@ struct MatrixPencilResult {
   int pencil = 0;                       ///< pencil parameter L used, samples
 };
 
+/// Fewest samples a pencil of n oscillations and R real poles needs: 2 (2n + R) + 2.
+inline int matrix_pencil_min_samples(int modes, int real_poles) {
+  return 2 * (2 * modes + real_poles) + 2;
+}
+
 /// Estimates n damped oscillations (and R real poles) shared by the columns of `samples` (S x C,
 /// one channel per column, S >= 4n + 2R + 2). Signal subspace: the 2n + R dominant right singular
 /// vectors V ((L+1) x (2n + R)) of
