@@ -169,23 +169,18 @@ BOOST_AUTO_TEST_CASE(noise_free_trials_are_valid_and_accurate) {
 }
 
 BOOST_AUTO_TEST_CASE(poynting_thomson_posture_trial_is_fitted_with_a_real_term) {
-  // Poynting-Thomson joints (models/specs/piovesan_reach_poynting_thomson.json's element at the
-  // posture of piovesan_posture_constant.json), impulse at 90 degrees, noise-free. The posture
+  // Poynting-Thomson joints (models/specs/piovesan_reach_poynting_thomson.json: its element and
+  // 90-degree impulse, at the posture of piovesan_posture_constant.json), noise-free. The posture
   // system linearised about the hand at (0.4, 0) m (states d, d', z; numpy eigvals in
   // scripts/tfa_reach_report.py, linear_poles) has two oscillatory modes, -4.99123 +- 47.67043i
   // and -4.99567 +- 67.87725i 1/s (7.58703 and 10.80296 Hz), and two real poles, -2.00866 and
   // -2.01753 1/s: the fibres' creep. Without a real term the start finds one oscillation
   // (exit 1 before real terms existed); by default the fit takes one real term, whose rate lies
   // between the two real poles (one term suffices for two rates 0.4 % apart).
-  const nlohmann::json spec_json = nlohmann::json::parse(R"({
-    "model": "arm", "duration_s": 5, "sample_rate_hz": 4000, "seed": 1,
-    "task": {"kind": "posture", "hand_m": [0.4, 0.0]},
-    "viscoelasticity": {"kind": "poynting_thomson",
-                        "stiffness_nm_per_rad": [[70, 10], [10, 40]],
-                        "series_stiffness_nm_per_rad": [[350, 50], [50, 200]],
-                        "damping_nms_per_rad": [[35, 5], [5, 20]]},
-    "perturbations": [{"kind": "impulse", "onset_s": 2.5, "direction_deg": 90.0}]})");
-  const m::TrialSpec spec = m::parse_trial_spec(spec_json, "poynting_thomson posture");
+  const std::string specs = std::string(STIFFID_SOURCE_DIR) + "/models/specs/";
+  m::TrialSpec spec = m::read_trial_spec(specs + "piovesan_reach_poynting_thomson.json");
+  spec.task = m::read_trial_spec(specs + "piovesan_posture_constant.json").task;
+  spec.noise = m::NoiseOptions{};  // noise-free
   std::mt19937_64 rng(1);
   const m::SimulationResult sim = m::simulate(spec, rng);
   BOOST_REQUIRE(sim.status.ok);
