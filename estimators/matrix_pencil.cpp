@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <limits>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -54,6 +55,87 @@ Eigen::MatrixXd damped_basis(const Eigen::VectorXcd& lambda, const Eigen::Vector
   return basis;
 }
 
+// Eigenvalues (ascending) of the symmetric matrix `a` and an orthonormal basis of the eigenvectors
+// of its `count` largest, columns in descending eigenvalue order: Householder tridiagonalization
+// (Eigen), the eigenvalues of the tridiagonal matrix T by implicit QL without vectors, the wanted
+// eigenvectors of T by inverse iteration (Gaussian elimination with partial pivoting on the
+// tridiagonal T - mu I, each vector orthogonalized against the ones before it, which also keeps
+// a cluster of close eigenvalues spanning its subspace), then Q y. For L = 160 about 3x cheaper
+// than the full eigendecomposition, whose n^3 vector updates are what the pencil does not need.
+void top_eigenvectors(const Eigen::MatrixXd& a, int count, Eigen::VectorXd& eigenvalues,
+                      Eigen::MatrixXd& vectors) {
+  const int n = static_cast<int>(a.rows());
+  const Eigen::Tridiagonalization<Eigen::MatrixXd> tri(a);
+  const Eigen::VectorXd diag = tri.diagonal();
+  const Eigen::VectorXd sub = tri.subDiagonal();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> values;
+  values.computeFromTridiagonal(diag, sub, Eigen::EigenvaluesOnly);
+  eigenvalues = values.eigenvalues();
+  const double scale = std::max(eigenvalues.cwiseAbs().maxCoeff(), 1e-300);
+  Eigen::MatrixXd y(n, count);
+  // Solves (T - mu I) x = b in place (b -> x): elimination with row interchanges, U with two
+  // superdiagonals; a zero pivot is replaced by a tiny one (the solve then amplifies the wanted
+  // eigenvector, as inverse iteration intends).
+  Eigen::VectorXd u0(n), u1(n), u2(n), lower(n);
+  std::vector<char> swapped(n);
+  auto factor = [&](double mu) {
+    const double tiny = std::numeric_limits<double>::epsilon() * scale;
+    double d = diag(0) - mu, e = n > 1 ? sub(0) : 0.0;
+    for (int i = 0; i < n; ++i) {
+      if (i == n - 1) {
+        u0(i) = std::abs(d) > tiny ? d : tiny;
+        u1(i) = u2(i) = 0.0;
+        break;
+      }
+      const double below = sub(i), next_d = diag(i + 1) - mu;
+      const double next_e = i + 2 < n ? sub(i + 1) : 0.0;
+      if (std::abs(below) > std::abs(d)) {  // swap rows i and i + 1
+        swapped[i] = 1;
+        u0(i) = below;
+        u1(i) = next_d;
+        u2(i) = next_e;
+        lower(i) = d / below;
+        d = e - lower(i) * next_d;
+        e = -lower(i) * next_e;
+      } else {
+        swapped[i] = 0;
+        const double pivot = std::abs(d) > tiny ? d : tiny;
+        u0(i) = pivot;
+        u1(i) = e;
+        u2(i) = 0.0;
+        lower(i) = below / pivot;
+        d = next_d - lower(i) * e;
+        e = next_e;
+      }
+    }
+  };
+  auto solve = [&](Eigen::Ref<Eigen::VectorXd> b) {
+    for (int i = 0; i + 1 < n; ++i) {
+      if (swapped[i]) std::swap(b(i), b(i + 1));
+      b(i + 1) -= lower(i) * b(i);
+    }
+    for (int i = n - 1; i >= 0; --i) {
+      double v = b(i);
+      if (i + 1 < n) v -= u1(i) * b(i + 1);
+      if (i + 2 < n) v -= u2(i) * b(i + 2);
+      b(i) = v / u0(i);
+    }
+  };
+  for (int k = 0; k < count; ++k) {
+    const double lambda = eigenvalues(n - 1 - k);
+    // A shift just off the eigenvalue (relative 1e-10 of the largest) keeps T - mu I regular.
+    factor(lambda + 1e-10 * scale);
+    Eigen::Ref<Eigen::VectorXd> x = y.col(k);
+    for (int i = 0; i < n; ++i) x(i) = 1.0 + 0.5 * std::sin(1.0 + i);  // deterministic start
+    for (int it = 0; it < 3; ++it) {
+      solve(x);
+      for (int q = 0; q < k; ++q) x -= y.col(q).dot(x) * y.col(q);
+      x.normalize();
+    }
+  }
+  vectors = tri.matrixQ() * y;
+}
+
 }  // namespace
 
 MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd>& samples,
@@ -92,13 +174,14 @@ MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd
         step += samples(rows + a, k) * samples(rows + b, k) - samples(a, k) * samples(b, k);
       gram(b + 1, a + 1) = gram(b, a) + step;
     }
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);  // ascending eigenvalues
-  result.singular_values = eig.eigenvalues().reverse().cwiseMax(0.0).cwiseSqrt();
+  Eigen::VectorXd eigenvalues;  // ascending
+  Eigen::MatrixXd v;            // the signal subspace: eigenvectors of the `order` largest
+  top_eigenvectors(gram, order, eigenvalues, v);
+  result.singular_values = eigenvalues.reverse().cwiseMax(0.0).cwiseSqrt();
   if (!(result.singular_values(0) > 0.0)) {
     result.status = Status::failure("matrix pencil: the signals are identically zero");
     return result;
   }
-  const Eigen::MatrixXd v = eig.eigenvectors().rightCols(order).rowwise().reverse();
   const Eigen::MatrixXd v1 = v.topRows(pencil);
   const Eigen::MatrixXd v2 = v.bottomRows(pencil);
   const Eigen::MatrixXd z_matrix = v1.colPivHouseholderQr().solve(v2);  // (2n x 2n), Hua eq 23
