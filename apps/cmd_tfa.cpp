@@ -300,7 +300,7 @@ void run(TfaCommandOptions cli) {
     } else {
       std::vector<bool> ok(frames, false);  // the ridge frames are the modal-analysis frames
       for (Eigen::Index m = 0; m < frames && m < r.ridges.valid.rows(); ++m) {
-        ok[m] = r.status.ok && r.ridges.valid(m, j);
+        ok[m] = r.status.ok && r.ridges.valid(m, j) && r.modal.separated(m);
       }
       valid.push_back(ok);
       anr.push_back(std::vector<std::nullptr_t>(frames, nullptr));

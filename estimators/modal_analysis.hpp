@@ -41,7 +41,12 @@ struct ModalAnalysisResult {
   std::vector<Eigen::MatrixXd> inertia_sqrt;   ///< [T] (n x n) M^1/2, sqrt(kg) m (eq 24)
   std::vector<Eigen::MatrixXd> stiffness_nm_per_rad;  ///< [T] (n x n) K_theta, N m/rad (eq 48)
   std::vector<Eigen::MatrixXd> damping_nms_per_rad;   ///< [T] (n x n) C_theta, N m s/rad (eq 48)
-  Status status;
+  /// [T] the smoothed mode shapes at frame t are separated: M^1/2 phi_j span the joint space
+  /// (smallest singular value >= 1e-6 of the largest), so P, K_theta and C_theta are defined.
+  /// Where false (the shapes are parallel: two ridges on one mode) the frame's K and C mean
+  /// nothing; the spectrogram method's `valid` is false there.
+  Eigen::Array<bool, Eigen::Dynamic, 1> separated;
+  Status status;  ///< failure when the ridges failed, no frame is separated, or eta^2 non-finite
 };
 
 /// Modal analysis of tracked ridges (channels = joints = modes = n) with the inertia M(theta(t_m))

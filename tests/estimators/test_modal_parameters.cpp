@@ -162,3 +162,53 @@ BOOST_AUTO_TEST_CASE(tracks_feed_the_spectrogram_pipelines_modal_analysis) {
   BOOST_CHECK_SMALL(ek, 0.01);
   BOOST_CHECK_SMALL(ec, 0.01);
 }
+
+BOOST_AUTO_TEST_CASE(frames_whose_mode_shapes_are_parallel_are_flagged_not_fatal) {
+  // Two ridges on one mode over 0.5 s (mode 2's amplitudes replaced by mode 1's): there the
+  // smoothed shapes are parallel and P is undefined. Those frames are flagged (separated false)
+  // and the rest keep the exact K of the noise-free 2-DOF system; only a record without any
+  // separated frame is a failure.
+  const Case cs = paper_case(0.0);
+  const Eigen::MatrixXd q = free_response(cs.m, cs.k, cs.c, {0.3, -0.5});
+  const auto modes = fit_damped_modes(q, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+  BOOST_REQUIRE(modes.status.ok);
+  auto ridges = stiffid::estimators::as_ridges(modes);
+  const Eigen::Index frames = ridges.time_s.size();
+  const std::vector<Eigen::MatrixXd> inertia(frames, cs.m);
+  for (Eigen::Index i = 0; i < frames; ++i) {
+    if (ridges.time_s(i) >= 3.5 && ridges.time_s(i) <= 4.0) {
+      ridges.amplitude_c[1].row(i) = ridges.amplitude_c[0].row(i);
+      ridges.amplitude[1].row(i) = ridges.amplitude[0].row(i);
+    }
+  }
+  const auto r = stiffid::estimators::modal_analysis(ridges, inertia, {});
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  BOOST_REQUIRE_EQUAL(r.separated.size(), frames);
+  int flagged = 0;
+  double ek = 0.0;
+  for (Eigen::Index i = 0; i < frames; ++i) {
+    const double t = r.time_s(i);
+    if (!r.separated(i)) {
+      ++flagged;
+      BOOST_CHECK(t >= 3.5 && t <= 4.0);  // only inside the corrupted span
+    }
+    if (t >= 3.75 - 0.1 && t <= 3.75 + 0.1) BOOST_CHECK(!r.separated(i));  // its middle
+    if (t >= 2.6 && t <= 3.2) {  // away from it, by more than the smoothing window
+      BOOST_CHECK(r.separated(i));
+      ek = std::max(ek, (r.stiffness_nm_per_rad[i] - cs.k).cwiseAbs().maxCoeff() /
+                            cs.k.cwiseAbs().maxCoeff());
+    }
+  }
+  BOOST_TEST_MESSAGE("parallel shapes: " << flagged << " frames flagged; K elsewhere " << ek);
+  BOOST_CHECK_GT(flagged, 0);
+  BOOST_CHECK_SMALL(ek, 0.01);
+  // Every frame parallel: a failure that says so.
+  for (Eigen::Index i = 0; i < frames; ++i) {
+    ridges.amplitude_c[1].row(i) = ridges.amplitude_c[0].row(i);
+    ridges.amplitude[1].row(i) = ridges.amplitude[0].row(i);
+  }
+  const auto all = stiffid::estimators::modal_analysis(ridges, inertia, {});
+  BOOST_CHECK(!all.status.ok);
+  BOOST_CHECK(all.status.message.find("parallel at every one") != std::string::npos);
+  BOOST_CHECK(!all.separated.any());
+}
