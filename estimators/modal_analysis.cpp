@@ -85,8 +85,7 @@ ModalAnalysisResult modal_analysis(const RidgeResult& ridges,
   }
   r.time_lag_s = (r.phase_difference_rad.array() / w).matrix();
 
-  int singular = 0;
-  r.separated = Eigen::Array<bool, Eigen::Dynamic, 1>::Constant(frames, true);
+  r.separated.resize(frames);
   for (int m = 0; m < frames; ++m) {
     const Eigen::MatrixXd& mass = inertia_kg_m2[m];
     const Eigen::MatrixXd root = models::spd_sqrt(mass);
@@ -95,15 +94,10 @@ ModalAnalysisResult modal_analysis(const RidgeResult& ridges,
       phi.col(j) = shapes[j].row(m).transpose().normalized();
       p.col(j) = (root * phi.col(j)).normalized();
     }
-    if (!p.allFinite()) {
-      ++singular;
-      r.separated(m) = false;
-    } else {  // nearest orthonormal matrix: the polar factor U V^T
+    r.separated(m) = p.allFinite();
+    if (r.separated(m)) {  // nearest orthonormal matrix: the polar factor U V^T
       const Eigen::JacobiSVD<Eigen::MatrixXd> svd(p, Eigen::ComputeFullU | Eigen::ComputeFullV);
-      if (!(svd.singularValues().minCoeff() >= 1e-6 * svd.singularValues().maxCoeff())) {
-        ++singular;
-        r.separated(m) = false;
-      }
+      r.separated(m) = svd.singularValues().minCoeff() >= 1e-6 * svd.singularValues().maxCoeff();
       p = svd.matrixU() * svd.matrixV().transpose();
     }
     const Eigen::VectorXd eta2 = r.eta_squared_per_s2.row(m).transpose();
@@ -116,7 +110,7 @@ ModalAnalysisResult modal_analysis(const RidgeResult& ridges,
   }
   if (!ridges.status.ok) {
     r.status = ridges.status;
-  } else if (singular == frames) {
+  } else if (!r.separated.any()) {
     r.status = Status::failure("modal analysis: the mode shapes are parallel at every one of the " +
                                std::to_string(frames) + " frames (modes not separated)");
   } else if (!r.eta_squared_per_s2.allFinite()) {
