@@ -176,6 +176,12 @@ void run(TfaCommandOptions cli) {
   if (!cli.subject_path.empty()) o.arm = read_subject(cli.subject_path);
 
   const data::Trial trial = data::read_trial_csv(cli.trial_path);
+  // --onset auto without --forces: the force channels fx, fy when the trial has both (the
+  // simulator's and the manipulandum exports' names); detect_onset_s names what is missing.
+  if (cli.onset == "auto" && o.deviation.force_channels.empty() && trial.find("fx") >= 0 &&
+      trial.find("fy") >= 0) {
+    o.deviation.force_channels = {"fx", "fy"};
+  }
   std::unique_ptr<data::Trial> baseline;
   if (!cli.baseline_path.empty()) {
     baseline = std::make_unique<data::Trial>(data::read_trial_csv(cli.baseline_path));
@@ -332,7 +338,8 @@ void add_tfa_command(CLI::App& app) {
   sub->add_option("trial", cli->trial_path, "trial CSV with a t column (s)")->required();
   sub->add_option("--angles", cli->angles, "shoulder,elbow angle channels (rad)")->required();
   sub->add_option("--onset", cli->onset, "pulse onset in s, or auto (from --forces)")->required();
-  sub->add_option("--forces", cli->forces, "force channels (N), for --onset auto");
+  sub->add_option("--forces", cli->forces,
+                  "force channels (N), for --onset auto (default fx,fy when the trial has both)");
   sub->add_option("--method", cli->method,
                   "modal (damped modes fitted to the whole free response, docs/tfa_modal.md) or "
                   "spectrogram (Piovesan 2012, docs/tfa.md)")

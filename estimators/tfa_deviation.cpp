@@ -25,7 +25,12 @@ double median(Eigen::VectorXd v) {
 double detect_onset_s(const data::Trial& trial, const std::vector<std::string>& force_channels,
                       double threshold, double& end_s) {
   if (force_channels.empty()) {
-    throw InputError("--onset auto needs the force channels (--forces fx,fy)");
+    std::string names;
+    for (const std::string& name : trial.names) names += " " + name;
+    throw InputError(where(trial) +
+                     ": --onset auto needs the force channels: give --forces (the "
+                     "default fx,fy is not in the trial; channels:" +
+                     names + ")");
   }
   if (!(threshold > 0.0 && threshold < 1.0)) {
     throw InputError("onset threshold must be in (0, 1), got " + std::to_string(threshold));

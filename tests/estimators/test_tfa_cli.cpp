@@ -110,13 +110,41 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --design windows"), 2);
 }
 
+BOOST_AUTO_TEST_CASE(auto_onset_defaults_to_the_fx_fy_channels) {
+  // Without --forces, --onset auto reads the trial's fx, fy (the fixture's pulse starts at 2.5 s).
+  const fs::path out = scratch("auto.json");
+  BOOST_REQUIRE_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset auto --method spectrogram -o " + out.string()), 0);
+  std::ifstream in(out);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  BOOST_CHECK_CLOSE(j["onset_s"].get<double>(), 2.5, 1e-6);
+  BOOST_CHECK(j["options"]["forces"] == nlohmann::json({"fx", "fy"}));
+  // A trial without them: exit 2, no output. The same record with the force columns dropped.
+  const fs::path angles_only = scratch("angles_only.csv"), none = scratch("none.json");
+  {
+    std::ifstream trial(kTrial);
+    std::ofstream copy(angles_only);
+    for (std::string line; std::getline(trial, line);) {
+      std::size_t cut = line.find(',');  // t,th1,th2 kept
+      for (int field = 0; field < 2; ++field) cut = line.find(',', cut + 1);
+      copy << line.substr(0, cut) << '\n';
+    }
+  }
+  BOOST_CHECK_EQUAL(run(angles_only.string() +
+                        " --angles th1,th2 --onset 2.5 --method spectrogram -o " + none.string()),
+                    0);  // the copy is a valid trial: only the onset detection needs forces
+  fs::remove(none);
+  BOOST_CHECK_EQUAL(
+      run(angles_only.string() + " --angles th1,th2 --onset auto -o " + none.string()), 2);
+  BOOST_CHECK(!fs::exists(none));
+}
+
 BOOST_AUTO_TEST_CASE(bad_input_exits_2_without_writing) {
   const fs::path out = scratch("bad.json");
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,elbow --onset 2.5 -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 9 -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 4.6 -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset soon -o " + out.string()), 2);
-  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset auto -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --window blackman -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --real-terms 1000 -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --design sliding --sliding-window-s -1 -o " + out.string()), 2);
