@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "data/error.hpp"
 #include "estimators/hilbert.hpp"
@@ -12,6 +13,25 @@ namespace {
 
 std::string where(const data::Trial& trial) {
   return trial.source.empty() ? std::string("trial") : trial.source;
+}
+
+// The named angle channels of `trial` in rad: a unit of "" or "rad" as recorded, "deg" and
+// "mrad" converted; any other unit is refused (K and C would be off by its factor).
+Eigen::MatrixXd angles_rad(const data::Trial& trial, const std::vector<std::string>& names,
+                           const std::string& flag) {
+  Eigen::MatrixXd angles = trial.columns(names);
+  for (std::size_t k = 0; k < names.size(); ++k) {
+    const std::string& unit = trial.units[static_cast<std::size_t>(trial.index(names[k]))];
+    if (unit == "deg") {
+      angles.col(static_cast<Eigen::Index>(k)) *= M_PI / 180.0;
+    } else if (unit == "mrad") {
+      angles.col(static_cast<Eigen::Index>(k)) *= 1e-3;
+    } else if (!unit.empty() && unit != "rad") {
+      throw InputError(where(trial) + ": " + flag + " channel '" + names[k] + "' is in [" + unit +
+                       "]; expected joint angles in rad (deg and mrad are converted)");
+    }
+  }
+  return angles;
 }
 
 double median(Eigen::VectorXd v) {
@@ -53,7 +73,7 @@ double detect_onset_s(const data::Trial& trial, const std::vector<std::string>& 
 DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions& options,
                                 const data::Trial* baseline) {
   if (options.angle_channels.empty()) throw InputError("--angles: no angle channel given");
-  const Eigen::MatrixXd angles = trial.columns(options.angle_channels);
+  const Eigen::MatrixXd angles = angles_rad(trial, options.angle_channels, "--angles");
   const double dt = trial.step_s();
   const double t_end = trial.start_time_s + trial.sample_count() * dt;
   DeviationResult r;
@@ -97,7 +117,7 @@ DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions
                        std::to_string(baseline->sample_rate_hz) + " Hz differs from the trial's " +
                        std::to_string(trial.sample_rate_hz) + " Hz");
     }
-    const Eigen::MatrixXd base = baseline->columns(options.angle_channels);
+    const Eigen::MatrixXd base = angles_rad(*baseline, options.angle_channels, "--baseline");
     const long first = std::lround((r.start_time_s - baseline->start_time_s) / dt);
     if (first < 0 || first + rows > baseline->sample_count()) {
       throw InputError("--baseline " + where(*baseline) + " covers " +

@@ -12,7 +12,8 @@
 namespace stiffid::estimators {
 
 struct DeviationOptions {
-  std::vector<std::string> angle_channels;  ///< joint angles, rad (shoulder, elbow, ...)
+  std::vector<std::string> angle_channels;  ///< joint angles (shoulder, elbow, ...): rad, or a
+                                            ///< header unit [deg] or [mrad], converted
   std::vector<std::string> force_channels;  ///< perturbation forces, N (needed for auto onset)
   double onset_s = std::numeric_limits<double>::quiet_NaN();  ///< pulse onset, s; NaN = auto
   double onset_threshold = 0.1;  ///< auto onset: first sample where |f - median f| reaches this

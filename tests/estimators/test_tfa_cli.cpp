@@ -1,13 +1,17 @@
 // `stiffid tfa` end to end: the JSON contract on a simulated posture trial (scipy fixture,
 // tests/data/tfa/make_posture_trials.py) and exit code 2 with no output file on bad input.
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <boost/test/unit_test.hpp>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
-#include <sys/wait.h>
-#include <unistd.h>
 
 namespace fs = std::filesystem;
 
@@ -136,6 +140,56 @@ BOOST_AUTO_TEST_CASE(auto_onset_defaults_to_the_fx_fy_channels) {
   fs::remove(none);
   BOOST_CHECK_EQUAL(
       run(angles_only.string() + " --angles th1,th2 --onset auto -o " + none.string()), 2);
+  BOOST_CHECK(!fs::exists(none));
+}
+
+BOOST_AUTO_TEST_CASE(angles_recorded_in_degrees_are_converted_other_units_refused) {
+  // The fixture with the shoulder angle written in degrees and the elbow's in mrad (header units
+  // [deg], [mrad]): the same K and amplitudes as from rad, to the 15 digits written (K depends on
+  // the ratio of the channels, so a unit left unconverted changes it); an angle channel in [m]
+  // is refused with exit 2, no output.
+  const fs::path deg = scratch("deg.csv"), metres = scratch("metres.csv");
+  {
+    std::ifstream trial(kTrial);
+    std::ofstream d(deg), m(metres);
+    std::string line;
+    std::getline(trial, line);
+    BOOST_REQUIRE_EQUAL(line, "t,th1[rad],th2[rad],fx[N],fy[N]");
+    d << "t,th1[deg],th2[mrad],fx[N],fy[N]\n";
+    m << "t,th1[m],th2[rad],fx[N],fy[N]\n";
+    d << std::setprecision(15);
+    while (std::getline(trial, line)) {
+      m << line << '\n';
+      std::istringstream fields(line);
+      std::string t, th1, th2, rest;
+      std::getline(fields, t, ',');
+      std::getline(fields, th1, ',');
+      std::getline(fields, th2, ',');
+      std::getline(fields, rest);
+      d << t << ',' << std::stod(th1) * 180.0 / M_PI << ',' << std::stod(th2) * 1e3 << ',' << rest
+        << '\n';
+    }
+  }
+  const fs::path from_rad = scratch("from_rad.json"), from_deg = scratch("from_deg.json");
+  const std::string args = " --angles th1,th2 --onset 2.5 --method spectrogram -o ";
+  BOOST_REQUIRE_EQUAL(run(kTrial + args + from_rad.string()), 0);
+  BOOST_REQUIRE_EQUAL(run(deg.string() + args + from_deg.string()), 0);
+  std::ifstream rad_in(from_rad), deg_in(from_deg);
+  const nlohmann::json a = nlohmann::json::parse(rad_in), b = nlohmann::json::parse(deg_in);
+  const std::size_t frames = a["t_s"].size();
+  BOOST_REQUIRE_EQUAL(b["t_s"].size(), frames);
+  for (int r = 0; r < 2; ++r) {
+    for (int c = 0; c < 2; ++c) {
+      const double ka = a["K_nm_per_rad"][r][c][frames / 2].get<double>();
+      const double kb = b["K_nm_per_rad"][r][c][frames / 2].get<double>();
+      BOOST_CHECK_SMALL(kb - ka, 1e-8 * std::abs(ka) + 1e-10);
+      const double aa = a["amplitude"][r][c][frames / 2].get<double>();
+      const double ab = b["amplitude"][r][c][frames / 2].get<double>();
+      BOOST_CHECK_SMALL(ab - aa, 1e-8 * std::abs(aa) + 1e-14);
+    }
+  }
+  const fs::path none = scratch("metres.json");
+  BOOST_CHECK_EQUAL(run(metres.string() + args + none.string()), 2);
   BOOST_CHECK(!fs::exists(none));
 }
 
