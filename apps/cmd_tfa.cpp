@@ -47,6 +47,7 @@
 #include "data/output.hpp"
 #include "data/text_input.hpp"
 #include "estimators/tfa.hpp"
+#include "models/spec.hpp"
 
 namespace stiffid::apps {
 namespace {
@@ -80,6 +81,21 @@ models::ArmParameters read_subject(const std::string& path) {
     throw InputError(std::string("--subject ") + e.what());
   }
   if (!spec.is_object()) throw InputError("--subject " + path + ": expected a JSON object");
+  if (spec.contains("model")) {  // a simulation spec (docs/simulator.md): the arm it simulates
+    models::TrialSpec trial_spec;
+    try {
+      trial_spec = models::parse_trial_spec(spec, path);
+    } catch (const InputError& e) {
+      throw InputError(std::string("--subject ") + e.what());
+    }
+    if (trial_spec.model != models::ModelKind::arm) {
+      throw InputError("--subject " + path +
+                       ": a spec of the endpoint model has no arm; give an arm model's spec or "
+                       "the arm parameters (l1_m, r1_m, m1_kg, iz1_kg_m2, l2_m, r2_m, m2_kg, "
+                       "iz2_kg_m2)");
+    }
+    return trial_spec.arm;
+  }
   models::ArmParameters arm;
   const std::pair<const char*, double*> fields[] = {
       {"l1_m", &arm.l1_m}, {"r1_m", &arm.r1_m}, {"m1_kg", &arm.m1_kg},
@@ -388,7 +404,8 @@ void add_tfa_command(CLI::App& app) {
                   "the mean over 0.2 s before the onset");
   sub->add_option("--subject", cli->subject_path,
                   "JSON object of arm parameters (l1_m, r1_m, m1_kg, iz1_kg_m2, l2_m, r2_m, "
-                  "m2_kg, iz2_kg_m2); default Piovesan 2012 Table 1");
+                  "m2_kg, iz2_kg_m2), or an arm model's simulation spec (its arm); default "
+                  "Piovesan 2012 Table 1");
   sub->add_option("--window", cli->window, "kaiser:BETA, hann or gaussian:SIGMA_FRACTION")
       ->capture_default_str();
   sub->add_option("--window-s", o.spectrogram.window_s, "STFT window length, s")

@@ -193,6 +193,33 @@ BOOST_AUTO_TEST_CASE(angles_recorded_in_degrees_are_converted_other_units_refuse
   BOOST_CHECK(!fs::exists(none));
 }
 
+BOOST_AUTO_TEST_CASE(subject_from_arm_parameters_or_a_simulation_spec) {
+  // The same arm (upper arm 0.31 m, forearm 1.5 kg; the rest Table 1) given as parameters and as
+  // a simulation spec's "arm": the same M(theta) and K, both different from the default arm's.
+  const fs::path flat = scratch("flat.json"), sim = scratch("sim.json"),
+                 endpoint = scratch("e.json");
+  std::ofstream(flat) << R"({"l1_m": 0.31, "m2_kg": 1.5})";
+  std::ofstream(sim) << R"({"model": "arm", "duration_s": 5, "sample_rate_hz": 4000,
+                           "arm": {"l1_m": 0.31, "m2_kg": 1.5}})";
+  std::ofstream(endpoint) << R"({"model": "endpoint", "duration_s": 5, "sample_rate_hz": 4000})";
+  const std::string args = " --angles th1,th2 --onset 2.5 --method spectrogram -o ";
+  const fs::path a = scratch("a.json"), b = scratch("b.json"), d = scratch("d.json");
+  BOOST_REQUIRE_EQUAL(run(kTrial + args + a.string() + " --subject " + flat.string()), 0);
+  BOOST_REQUIRE_EQUAL(run(kTrial + args + b.string() + " --subject " + sim.string()), 0);
+  BOOST_REQUIRE_EQUAL(run(kTrial + args + d.string()), 0);
+  std::ifstream ia(a), ib(b), id(d);
+  const nlohmann::json ja = nlohmann::json::parse(ia), jb = nlohmann::json::parse(ib),
+                       jd = nlohmann::json::parse(id);
+  BOOST_CHECK(ja["options"]["arm"] == jb["options"]["arm"]);
+  BOOST_CHECK_EQUAL(jb["options"]["arm"]["l1_m"].get<double>(), 0.31);
+  BOOST_CHECK(ja["M_kg_m2"] == jb["M_kg_m2"]);
+  BOOST_CHECK(ja["K_nm_per_rad"] == jb["K_nm_per_rad"]);
+  BOOST_CHECK(ja["M_kg_m2"] != jd["M_kg_m2"]);
+  const fs::path none = scratch("none_subject.json");
+  BOOST_CHECK_EQUAL(run(kTrial + args + none.string() + " --subject " + endpoint.string()), 2);
+  BOOST_CHECK(!fs::exists(none));
+}
+
 BOOST_AUTO_TEST_CASE(bad_input_exits_2_without_writing) {
   const fs::path out = scratch("bad.json");
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,elbow --onset 2.5 -o " + out.string()), 2);
