@@ -3,7 +3,7 @@
 // docs/tfa_modal.md), or the reassigned spectrogram and modal analysis of Piovesan et al. 2012
 // (`--method spectrogram`, docs/tfa.md); estimators/tfa.hpp.
 //
-//   stiffid tfa TRIAL.csv --angles th1,th2 --onset 2.5|auto [--forces fx,fy]
+//   stiffid tfa TRIAL.csv --angles th1,th2 --onset 2.5|auto [--forces fx,fy] [--fs HZ]
 //               [--method modal|spectrogram] [--decimate-hz 200] [--knots-s 0.1]
 //               [--shape-knots-s 0.5] [--baseline BASE.csv] [--subject SPEC.json]
 //               [--window kaiser:3|hann|gaussian:S] [--window-s 0.75] [--hop-s 0.0025]
@@ -56,6 +56,7 @@ struct TfaCommandOptions {
   std::string design = "whole";
   std::string trial_path, angles, forces, onset, method = "modal", baseline_path,
       subject_path, window = "kaiser:3", output_path, spectrogram_path;
+  double sample_rate_hz = 0.0;  // --fs, Hz: for files without a t column (0: from t)
   estimators::TfaOptions tfa;
 };
 
@@ -191,7 +192,12 @@ void run(TfaCommandOptions cli) {
   o.spectrogram.window = estimators::TfWindow::parse(cli.window, "--window");
   if (!cli.subject_path.empty()) o.arm = read_subject(cli.subject_path);
 
-  const data::Trial trial = data::read_trial_csv(cli.trial_path);
+  if (!std::isfinite(cli.sample_rate_hz) || cli.sample_rate_hz < 0.0) {
+    throw InputError("--fs: expected a positive sampling rate in Hz");
+  }
+  data::TrialCsvOptions csv;
+  csv.sample_rate_hz = cli.sample_rate_hz;
+  const data::Trial trial = data::read_trial_csv(cli.trial_path, csv);
   // --onset auto without --forces: the force channels fx, fy when the trial has both (the
   // simulator's and the manipulandum exports' names); detect_onset_s names what is missing.
   if (cli.onset == "auto" && o.deviation.force_channels.empty() && trial.find("fx") >= 0 &&
@@ -200,7 +206,7 @@ void run(TfaCommandOptions cli) {
   }
   std::unique_ptr<data::Trial> baseline;
   if (!cli.baseline_path.empty()) {
-    baseline = std::make_unique<data::Trial>(data::read_trial_csv(cli.baseline_path));
+    baseline = std::make_unique<data::Trial>(data::read_trial_csv(cli.baseline_path, csv));
   }
   const estimators::TfaResult r = estimators::identify_tfa(trial, o, baseline.get());
   if (!r.status.ok) throw NumericalFailure(trial.source + ": " + r.status.message);
@@ -354,6 +360,8 @@ void add_tfa_command(CLI::App& app) {
   sub->add_option("trial", cli->trial_path, "trial CSV with a t column (s)")->required();
   sub->add_option("--angles", cli->angles, "shoulder,elbow angle channels (rad)")->required();
   sub->add_option("--onset", cli->onset, "pulse onset in s, or auto (from --forces)")->required();
+  sub->add_option("--fs", cli->sample_rate_hz,
+                  "sampling rate in Hz (required without a t column; time then starts at 0 s)");
   sub->add_option("--forces", cli->forces,
                   "force channels (N), for --onset auto (default fx,fy when the trial has both)");
   sub->add_option("--method", cli->method,

@@ -220,6 +220,31 @@ BOOST_AUTO_TEST_CASE(subject_from_arm_parameters_or_a_simulation_spec) {
   BOOST_CHECK(!fs::exists(none));
 }
 
+BOOST_AUTO_TEST_CASE(a_trial_without_time_column_needs_fs) {
+  // The fixture (2 kHz, t from 2.0 s) without its t column: with --fs 2000 time starts at 0, so the
+  // onset is 0.5 s and the same K comes out 2 s earlier; without --fs, exit 2 and no output.
+  const fs::path untimed = scratch("untimed.csv");
+  {
+    std::ifstream trial(kTrial);
+    std::ofstream copy(untimed);
+    for (std::string line; std::getline(trial, line);)
+      copy << line.substr(line.find(',') + 1) << '\n';
+  }
+  const std::string args = " --angles th1,th2 --method spectrogram -o ";
+  const fs::path a = scratch("timed.json"), b = scratch("untimed.json");
+  BOOST_REQUIRE_EQUAL(run(kTrial + args + a.string() + " --onset 2.5"), 0);
+  BOOST_CHECK_EQUAL(run(untimed.string() + args + b.string() + " --onset 0.5"), 2);
+  BOOST_CHECK(!fs::exists(b));
+  BOOST_REQUIRE_EQUAL(run(untimed.string() + args + b.string() + " --onset 0.5 --fs 2000"), 0);
+  std::ifstream ia(a), ib(b);
+  const nlohmann::json ja = nlohmann::json::parse(ia), jb = nlohmann::json::parse(ib);
+  BOOST_REQUIRE_EQUAL(ja["t_s"].size(), jb["t_s"].size());
+  BOOST_CHECK_CLOSE(jb["t_s"][0].get<double>() + 2.0, ja["t_s"][0].get<double>(), 1e-9);
+  const std::size_t mid = ja["t_s"].size() / 2;
+  BOOST_CHECK_CLOSE(jb["K_nm_per_rad"][0][0][mid].get<double>(),
+                    ja["K_nm_per_rad"][0][0][mid].get<double>(), 1e-6);
+}
+
 BOOST_AUTO_TEST_CASE(bad_input_exits_2_without_writing) {
   const fs::path out = scratch("bad.json");
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,elbow --onset 2.5 -o " + out.string()), 2);
