@@ -263,6 +263,7 @@ void run(TfaCommandOptions cli) {
                             {"amplitude_rad", series(term.amplitude)}});
     }
     out["real_terms"] = real_terms;
+    out["offset_rad"] = series(r.modes.offset_rad);
     if (!r.modes.warning.empty()) std::cerr << "stiffid tfa: warning: " << r.modes.warning << '\n';
     const Eigen::MatrixXd& cov = r.modes.noise_covariance;
     nlohmann::json noise = nlohmann::json::array();

@@ -5,12 +5,13 @@
 // whole post-onset record at once by variable projection on Ceres.
 //
 // Model, channel k, time tau from the first fitted sample (Piovesan 2012 eqs 5, 33, 39):
-//   x_k(tau) = sum_j Re( a_jk(tau) exp(Phi_j(tau)) ) + sum_r b_rk exp(beta_r tau),
+//   x_k(tau) = sum_j Re( a_jk(tau) exp(Phi_j(tau)) ) + sum_r b_rk exp(beta_r tau) + o_k,
 //   Phi_j(tau) = int_0^tau (alpha_j(s) + i omega_j(s)) ds,
 // omega_j, alpha_j cubic B-splines (knots ~0.1 s), a_jk(tau) complex cubic B-splines with coarse
 // knots whose changes are penalized (they stay constant unless the data ask otherwise), and
 // optional real terms (non-oscillatory exponentials with constant rates beta_r and amplitudes b_rk:
-// the slow creep of a Poynting-Thomson element's fibres, its real poles). The
+// the slow creep of a Poynting-Thomson element's fibres, its real poles) and a constant offset o_k
+// per channel (the error of the posture the deviations are taken from). The
 // amplitudes a are linear and eliminated (variable projection, Golub & Pereyra 2003, with
 // Kaufman's Jacobian); residuals are whitened by the pre-onset noise covariance.
 
@@ -86,6 +87,10 @@ struct DampedModesOptions {
                                         ///< (default): the fewest (0 .. 2n) with which the start's
                                         ///< matrix pencil finds the n oscillatory poles (0 on a
                                         ///< Kelvin-Voigt arm; Poynting-Thomson trials need them)
+  bool offsets = true;                  ///< design whole: also fit a constant offset per
+                                        ///< channel (linear), the error of the posture the
+                                        ///< deviations are taken from (the 0.2 s pre-onset
+                                        ///< mean), rad
 };
 
 /// One real term of the fit: b_k exp(beta tau), tau from the first fitted sample.
@@ -129,8 +134,10 @@ struct DampedModesResult {
   double rate_hz = 0.0;             ///< sample rate of the fitted data, Hz
   Eigen::MatrixXd noise_covariance; ///< (C x C) of the filtered pre-onset noise, channel units^2
   std::vector<RealTerm> real_terms; ///< [R] slowest first; empty without real terms
-  Eigen::MatrixXd fitted;           ///< (T x C) the model at t_s (modes and real terms),
-                                    ///< channel units
+  Eigen::VectorXd offset_rad;       ///< [C] fitted constant offset per channel (the posture's
+                                    ///< error; zeros when not fitted), channel units (rad)
+  Eigen::MatrixXd fitted;           ///< (T x C) the model at t_s (modes, real terms and
+                                    ///< offsets), channel units
   Eigen::MatrixXd data;             ///< (T x C) filtered, decimated data at t_s, channel units
   MatrixPencilResult start;         ///< global matrix pencil over the fitted samples
   double shape_weight = 0.0;        ///< shape-change penalty used

@@ -174,6 +174,37 @@ BOOST_AUTO_TEST_CASE(noise_free_tracks_are_exact_when_the_spline_can_represent_t
   }
 }
 
+BOOST_AUTO_TEST_CASE(a_constant_offset_is_fitted_not_absorbed_by_the_tracks) {
+  // The deviations are taken from a posture estimated before the onset: its error is a constant
+  // offset of every sample. Fitted as such (one linear parameter per channel), the spline-exact
+  // tracks stay exact and the offset comes back; without it the tracks bend to absorb it.
+  const auto [m1, m2] = spline_exact_modes();
+  Eigen::MatrixXd x = response({m1, m2});
+  const Eigen::RowVector2d offset(0.004, -0.003);  // ~0.4 % of the response's peak
+  x.rowwise() += offset;
+  const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  check_exact_tracks(r, m1, m2);
+  BOOST_REQUIRE_EQUAL(r.offset_rad.size(), 2);
+  // Exact to the solver's tolerance (relative steps 1e-10) and the filter's pass-band gain (1e-4).
+  BOOST_CHECK_SMALL(r.offset_rad(0) - offset(0), 1e-6);
+  BOOST_CHECK_SMALL(r.offset_rad(1) - offset(1), 1e-6);
+  BOOST_CHECK_SMALL((r.fitted - r.data).norm() / r.data.norm(), 1e-4);
+  DampedModesOptions without;
+  without.offsets = false;
+  const DampedModesResult biased = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, without);
+  BOOST_REQUIRE_MESSAGE(biased.status.ok, biased.status.message);
+  BOOST_CHECK_EQUAL(biased.offset_rad.norm(), 0.0);
+  double worst = 0.0;
+  for (int j = 0; j < 2; ++j) {
+    const Errors e = track_errors(biased, j, j == 0 ? m1 : m2, 2.6, 4.9);
+    BOOST_TEST_MESSAGE("without offsets, mode " << j << ": f " << e.f_rel << ", alpha "
+                                                << e.alpha_rel);
+    worst = std::max(worst, e.alpha_rel);
+  }
+  BOOST_CHECK_GT(worst, 1e-2);  // ten times the tolerance the offsets keep
+}
+
 BOOST_AUTO_TEST_CASE(close_modes_with_a_weak_one_at_20_db_within_one_percent) {
   const std::vector<ClosedFormMode> modes = close_modes(0.26);
   const double weak = energy_fraction(modes, 1);
