@@ -68,7 +68,7 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
                           "eta_squared_per_s2", "K_nm_per_rad", "C_nms_per_rad", "eigenvectors",
                           "normalized_force", "options", "valid", "anr_db", "K_valid",
                           "noise_covariance_rad2", "residual_rms_whitened", "iterations",
-                          "decay_ratio", "real_terms"}) {
+                          "decay_ratio", "real_terms", "offset_rad"}) {
     BOOST_CHECK_MESSAGE(j.contains(key), key);
   }
   for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "shape_weight",
