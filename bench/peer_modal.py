@@ -13,6 +13,7 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     through the kept estimates as the start (matrix_pencil.cpp, start_tracks);
   - uniform cubic B-spline tracks omega_j, alpha_j (knots 0.1 s) with closed-form running
     integrals (cubic_bspline.cpp);
+  - a constant offset per channel among the linear parameters (the posture's estimation error);
   - variable projection with Kaufman's Jacobian, minimized by Levenberg-Marquardt, along the
     roughness continuation 0.003 .. 3 with the BIC rule;
   - the decay tie (more than one mode; opt-in, --decay-tie as stiffid's, default 0 = none): a
@@ -246,7 +247,8 @@ class VpProblem:
         self.terms, self.functions = terms, functions
         self.mode_onehot = (self.t_modes[:, None] == np.arange(modes)[None, :]).astype(float)
         self.rd = self.n * self.c
-        self.nl = 2 * len(terms)
+        self.nt = 2 * len(terms)
+        self.nl = self.nt + self.c  # then a constant whitened offset per channel (the posture's)
         self.tp = 2 * modes * self.m  # track parameters
         self.tied = modes - 1 if tie.sd > 0 else 0
         self.np = self.tp + self.tied
@@ -279,7 +281,8 @@ class VpProblem:
         v = self.t_funcs * e[:, self.t_modes]  # (N x T)
         w = (v[:, None, :] * self.t_dirs[None, :, :]).reshape(self.rd, -1)
         a = np.empty((self.rd, self.nl))
-        a[:, 0::2], a[:, 1::2] = w.real, -w.imag
+        a[:, 0:self.nt:2], a[:, 1:self.nt:2] = w.real, -w.imag
+        a[:, self.nt:] = np.tile(np.eye(self.c), (self.n, 1))
         return a, self.penalty
 
     def evaluate(self, theta):
@@ -324,7 +327,7 @@ class VpProblem:
         the rho columns)."""
         if not self.evaluate(theta):
             return np.zeros((self.residuals, self.np))
-        coef = self.beta[0::2] + 1j * self.beta[1::2]
+        coef = self.beta[0:self.nt:2] + 1j * self.beta[1:self.nt:2]
         v = self.t_funcs * self.e[:, self.t_modes] * coef  # (N x T)
         y = (v[:, None, :] * self.t_dirs[None, :, :]) @ self.mode_onehot  # (N, C, modes)
         y = y.reshape(self.rd, self.modes)
@@ -558,7 +561,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     functions, function_slopes = final.functions, np.zeros_like(final.functions)
     if shape is not None:
         function_slopes = np.hstack([np.zeros((n, 1)), shape.first_derivatives(p["tau_s"])])
-    coef = beta[0::2] + 1j * beta[1::2]
+    coef = beta[0:final.nt:2] + 1j * beta[1:final.nt:2]
     th = theta[:2 * modes * m].reshape(modes, 2, m)
     lower = p["L"].astype(complex)
     fitted = np.zeros((n, c))
