@@ -247,6 +247,7 @@ void run(TfaCommandOptions cli) {
                            {"sliding_window_s", mo.sliding_window_s},
                            {"real_terms", r.modes.real_terms.size()},
                            {"real_terms_from_data", mo.real_terms < 0},
+                           {"offsets", mo.offsets && mo.design == estimators::ModalDesign::whole},
                            {"mapping", "state_space"}});
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
     out["converged"] = r.modes.converged;
@@ -358,7 +359,7 @@ void add_tfa_command(CLI::App& app) {
       "time-varying joint stiffness K(t) and damping C(t) from one impulse-perturbed trial: "
       "damped-mode fit (default) or reassigned spectrogram, then modal analysis (Piovesan et al. "
       "2012 eqs 23-49)");
-  sub->add_option("trial", cli->trial_path, "trial CSV with a t column (s)")->required();
+  sub->add_option("trial", cli->trial_path, "trial CSV with a t column (s), or --fs")->required();
   sub->add_option("--angles", cli->angles, "shoulder,elbow angle channels (rad)")->required();
   sub->add_option("--onset", cli->onset, "pulse onset in s, or auto (from --forces)")->required();
   sub->add_option("--fs", cli->sample_rate_hz,

@@ -72,9 +72,11 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
     BOOST_CHECK_MESSAGE(j.contains(key), key);
   }
   for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "shape_weight",
-                          "real_terms", "real_terms_from_data"}) {
+                          "real_terms", "real_terms_from_data", "offsets"}) {
     BOOST_CHECK_MESSAGE(j["options"].contains(key), key);
   }
+  BOOST_CHECK(j["options"]["offsets"].get<bool>());
+  BOOST_CHECK_EQUAL(j["offset_rad"].size(), 2u);
   // A Kelvin-Voigt arm has no real poles: no real term is added.
   BOOST_CHECK_EQUAL(j["real_terms"].size(), 0u);
   BOOST_CHECK_EQUAL(j["options"]["real_terms"].get<int>(), 0);
