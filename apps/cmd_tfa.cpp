@@ -248,6 +248,7 @@ void run(TfaCommandOptions cli) {
                            {"real_terms", r.modes.real_terms.size()},
                            {"real_terms_from_data", mo.real_terms < 0},
                            {"offsets", mo.offsets && mo.design == estimators::ModalDesign::whole},
+                           {"second_order", r.modes.second_order_mode >= 0},
                            {"mapping", "state_space"}});
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
     out["converged"] = r.modes.converged;
@@ -265,6 +266,8 @@ void run(TfaCommandOptions cli) {
     }
     out["real_terms"] = real_terms;
     out["offset_rad"] = series(r.modes.offset_rad);
+    // Index j of the mode whose quadratic distortion was fitted (-1: none), as in f_hz[j].
+    out["second_order_mode"] = r.modes.second_order_mode;
     if (!r.modes.warning.empty()) std::cerr << "stiffid tfa: warning: " << r.modes.warning << '\n';
     const Eigen::MatrixXd& cov = r.modes.noise_covariance;
     nlohmann::json noise = nlohmann::json::array();

@@ -139,13 +139,16 @@ struct DecayTie {
 // Variable-projection problem for fixed linear terms and shape penalty. Parameters: the track
 // coefficients (2 n M), the tie's ratios (n - 1 with a tie), the real terms' rates (R, 1/s).
 // Linear parameters: Re, Im of each LinearTerm, then the real terms' whitened amplitudes (R C),
-// then, with offsets, a constant whitened offset per channel (C).
+// then, with offsets, a constant whitened offset per channel (C), then, with a second-order mode
+// j, per whitened channel the amplitude of exp(2 Re Phi_j) and Re, Im of that of exp(2 Phi_j)
+// (3 C).
 class VpProblem {
  public:
   VpProblem(const Prepared& p, int modes, const Eigen::MatrixXd& phase_integrals,
             const Eigen::MatrixXd& functions, std::vector<LinearTerm> terms,
             std::vector<std::pair<int, int>> penalized_pairs, double shape_weight,
-            const Eigen::MatrixXd& prior_rows, DecayTie tie, int real_terms, bool offsets)
+            const Eigen::MatrixXd& prior_rows, DecayTie tie, int real_terms, bool offsets,
+            int second_order_mode = -1)
       : p_(p),
         modes_(modes),
         ig_(phase_integrals),
@@ -156,7 +159,8 @@ class VpProblem {
         prior_(prior_rows),
         tie_(std::move(tie)),
         real_(real_terms),
-        offsets_(offsets ? static_cast<int>(p.whiten.rows()) : 0) {}
+        offsets_(offsets ? static_cast<int>(p.whiten.rows()) : 0),
+        so_mode_(second_order_mode) {}
 
   int basis() const { return static_cast<int>(ig_.cols()); }
   int track_parameters() const { return 2 * modes_ * basis(); }
@@ -166,7 +170,10 @@ class VpProblem {
   int parameters() const { return first_rate() + real_; }
   int complex_linear() const { return 2 * static_cast<int>(terms_.size()); }
   int first_offset() const { return complex_linear() + real_ * static_cast<int>(p_.whiten.rows()); }
-  int linear() const { return first_offset() + offsets_; }
+  int first_so() const { return first_offset() + offsets_; }
+  int so_count() const { return so_mode_ >= 0 ? 3 * static_cast<int>(p_.whiten.rows()) : 0; }
+  int second_order_mode() const { return so_mode_; }
+  int linear() const { return first_so() + so_count(); }
   int data_rows() const { return static_cast<int>(p_.yw.size()); }
   int penalty_rows() const { return 2 * static_cast<int>(pairs_.size()); }
   int tie_rows() const { return tied_modes() * basis(); }
@@ -220,6 +227,16 @@ class VpProblem {
         for (int k = 0; k < c; ++k) a_data(i * c + k, complex_linear() + r * c + k) = er(i, r);
     for (int k = 0; k < offsets_; ++k)
       for (int i = 0; i < n; ++i) a_data(i * c + k, first_offset() + k) = 1.0;
+    if (so_mode_ >= 0)
+      for (int i = 0; i < n; ++i) {
+        const Complex e2 = e(i, so_mode_) * e(i, so_mode_);  // exp(2 Phi_j)
+        const double dc = std::norm(e(i, so_mode_));         // exp(2 Re Phi_j)
+        for (int k = 0; k < c; ++k) {
+          a_data(i * c + k, first_so() + 3 * k) = dc;
+          a_data(i * c + k, first_so() + 3 * k + 1) = e2.real();
+          a_data(i * c + k, first_so() + 3 * k + 2) = -e2.imag();
+        }
+      }
     a_penalty.setZero(penalty_rows(), linear());
     for (size_t q = 0; q < pairs_.size(); ++q)
       for (int part = 0; part < 2; ++part) {
@@ -286,6 +303,24 @@ class VpProblem {
             d(i * c + k, (2 * j + 1) * m + q) = -g * y.imag();
           }
         }
+    if (so_mode_ >= 0) {
+      const int j = so_mode_;
+      for (int i = 0; i < n; ++i) {
+        const Complex e2 = e(i, j) * e(i, j);
+        const double dc = std::norm(e(i, j));
+        for (int k = 0; k < c; ++k) {
+          const double ydc = 2.0 * dc * beta(first_so() + 3 * k);
+          const Complex y2 =
+              2.0 * Complex(beta(first_so() + 3 * k + 1), beta(first_so() + 3 * k + 2)) * e2;
+          for (int q = 0; q < m; ++q) {
+            const double g = ig_(i, q);
+            if (g == 0.0) continue;
+            d(i * c + k, 2 * j * m + q) += g * (ydc + y2.real());
+            d(i * c + k, (2 * j + 1) * m + q) += -g * y2.imag();
+          }
+        }
+      }
+    }
     // A real term's rate moves its contribution b_rk exp(beta_r tau) by tau times it.
     for (int r = 0; r < real_; ++r)
       for (int i = 0; i < n; ++i)
@@ -331,6 +366,8 @@ class VpProblem {
   DecayTie tie_;
   int real_;  // R real terms
   int offsets_;  // C constant offsets (whitened), or 0
+  int so_mode_;  // mode j whose second-order terms are fitted (exp(2 Re Phi_j), exp(2 Phi_j)), or
+                 // -1
   // Work buffers of evaluate().
   mutable Eigen::MatrixXcd e_, contribution_;
   mutable Eigen::MatrixXd er_, a_data_, a_penalty_, a_, d_, q_, qtd_;
@@ -908,6 +945,25 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // (no tie when even the loosest is refused). A tie leaves fewer effective parameters to each
   // roughness step, so with a tie the roughness continuation then resumes from the chosen
   // roughness, rougher fits taken by the same rule.
+  // The strongest mode at the start (largest whitened amplitude of the linear solution at the
+  // start tracks) gets the second-order terms.
+  int so_mode = -1;
+  if (options.second_order && modes > 0) {
+    const VpProblem probe(p, modes, integrals, constant, terms, {}, 0.0,
+                          prior_rows(track, modes, grid[0]), DecayTie{}, real, options.offsets);
+    Eigen::VectorXd beta0;
+    std::vector<double> scratch(probe.residuals());
+    if (probe.evaluate(theta.data(), scratch.data(), nullptr, &beta0)) {
+      double best = -1.0;
+      for (int j = 0; j < modes; ++j) {
+        const double a = beta0.segment(2 * j * c, 2 * c).norm();
+        if (a > best) {
+          best = a;
+          so_mode = j;
+        }
+      }
+    }
+  }
   std::unique_ptr<VpProblem> stage1;
   StageOutcome outcome;
   DecayTie tie;
@@ -919,7 +975,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
                            const Eigen::VectorXd& start, auto&& accept) {
     auto problem = std::make_unique<VpProblem>(
         p, modes, integrals, constant, terms, std::vector<std::pair<int, int>>{}, 0.0,
-        prior_rows(track, modes, roughness), candidate_tie, real, options.offsets);
+        prior_rows(track, modes, roughness), candidate_tie, real, options.offsets, so_mode);
     Eigen::VectorXd candidate = start;
     const StageOutcome o = solve(*problem, candidate, options.max_iterations);
     result.iterations += o.iterations;
@@ -938,11 +994,22 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   auto rougher = [&](double rss, double dof, double price) {
     return previous_rss - rss > price * (dof - previous_dof);
   };
+  // The second-order terms are offered at the smoothest roughness, after the fit without them,
+  // and kept only when they pay for their 3 C parameters by the same rule: on a record where the
+  // distortion is below the noise they could otherwise trade with a mode that has sunk into it
+  // (test a_mode_sinking_into_the_noise_is_flagged_invalid).
+  const int so_offer = so_mode;
+  so_mode = -1;
   std::size_t chosen = 0;
   for (std::size_t g = 0; g < grid.size(); ++g) {
-    if (!try_candidate(grid[g], tie, grid.size() > 1 || options.decay_tie < 0.0, theta, rougher))
+    if (!try_candidate(grid[g], tie, grid.size() > 1 || options.decay_tie < 0.0 || so_offer >= 0,
+                       theta, rougher))
       break;
     chosen = g;
+    if (g == 0 && so_offer >= 0) {
+      so_mode = so_offer;
+      if (!try_candidate(grid[0], tie, true, theta, rougher)) so_mode = -1;
+    }
   }
   if (!stage1) {
     result.status = Status::failure("modal fit: no usable fit even with the smoothest tracks");
@@ -1014,11 +1081,11 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
         }
     }
     auto probe = std::make_unique<VpProblem>(p, modes, integrals, functions, varying, pairs, 1.0,
-                                             prior, tie, real, options.offsets);
+                                             prior, tie, real, options.offsets, so_mode);
     const double weight =
         options.shape_weight >= 0.0 ? options.shape_weight : choose_shape_weight(*probe, theta, p);
     auto stage2 = std::make_unique<VpProblem>(p, modes, integrals, functions, varying, pairs,
-                                              weight, prior, tie, real, options.offsets);
+                                              weight, prior, tie, real, options.offsets, so_mode);
     Eigen::VectorXd theta2 = theta;
     const StageOutcome outcome2 = solve(*stage2, theta2, options.max_iterations);
     result.iterations += outcome2.iterations;
@@ -1133,11 +1200,30 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     result.real_terms.push_back(std::move(rt));
   }
   result.offset_rad = Eigen::VectorXd::Zero(c);
-  if (fp.linear() > fp.first_offset()) {  // whitened offsets back to channel units
+  if (fp.first_so() > fp.first_offset()) {  // whitened offsets back to channel units
     result.offset_rad = p.cholesky * beta.segment(fp.first_offset(), c);
     result.fitted.rowwise() += result.offset_rad.transpose();
   }
-  finish_modes(p, options, result.modes);
+  result.second_order_mode = -1;
+  double so_mean = 0.0;
+  if (fp.second_order_mode() >= 0) {  // the distortion's part of the model, in channel units
+    const int j = fp.second_order_mode();
+    Eigen::MatrixXd whitened(n, c);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const Complex e2 = e(i, j) * e(i, j);
+      for (int k = 0; k < c; ++k) {
+        const int col = fp.first_so() + 3 * k;
+        whitened(i, k) =
+            std::norm(e(i, j)) * beta(col) + (Complex(beta(col + 1), beta(col + 2)) * e2).real();
+      }
+    }
+    result.fitted += whitened * p.cholesky.transpose();
+    so_mean = result.modes[j].omega_rad_per_s.mean();
+  }
+  finish_modes(p, options, result.modes);  // sorts the modes by mean frequency
+  for (std::size_t j = 0; j < result.modes.size() && fp.second_order_mode() >= 0; ++j)
+    if (result.modes[j].omega_rad_per_s.mean() == so_mean)
+      result.second_order_mode = static_cast<int>(j);
   return result;
 }
 

@@ -5,13 +5,16 @@
 // whole post-onset record at once by variable projection on Ceres.
 //
 // Model, channel k, time tau from the first fitted sample (Piovesan 2012 eqs 5, 33, 39):
-//   x_k(tau) = sum_j Re( a_jk(tau) exp(Phi_j(tau)) ) + sum_r b_rk exp(beta_r tau) + o_k,
+//   x_k(tau) = sum_j Re( a_jk(tau) exp(Phi_j(tau)) ) + sum_r b_rk exp(beta_r tau) + o_k
+//              + s_k exp(2 Re Phi_J(tau)) + Re( h_k exp(2 Phi_J(tau)) ),
 //   Phi_j(tau) = int_0^tau (alpha_j(s) + i omega_j(s)) ds,
 // omega_j, alpha_j cubic B-splines (knots ~0.1 s), a_jk(tau) complex cubic B-splines with coarse
 // knots whose changes are penalized (they stay constant unless the data ask otherwise), and
 // optional real terms (non-oscillatory exponentials with constant rates beta_r and amplitudes b_rk:
 // the slow creep of a Poynting-Thomson element's fibres, its real poles) and a constant offset o_k
-// per channel (the error of the posture the deviations are taken from). The
+// per channel (the error of the posture the deviations are taken from), and the second-order
+// response of the strongest mode J (its square: a slow part at twice its decay and a second
+// harmonic, from the arm's Coriolis and centripetal terms). The
 // amplitudes a are linear and eliminated (variable projection, Golub & Pereyra 2003, with
 // Kaufman's Jacobian); residuals are whitened by the pre-onset noise covariance.
 
@@ -91,6 +94,10 @@ struct DampedModesOptions {
                                         ///< channel (linear), the error of the posture the
                                         ///< deviations are taken from (the 0.2 s pre-onset
                                         ///< mean), rad
+  bool second_order = true;             ///< design whole: also fit the quadratic distortion of
+                                        ///< the strongest mode j (the arm's Coriolis and
+                                        ///< centripetal terms): b_k exp(2 Re Phi_j) + Re(d_k
+                                        ///< exp(2 Phi_j)) per channel, linear amplitudes
 };
 
 /// One real term of the fit: b_k exp(beta tau), tau from the first fitted sample.
@@ -136,6 +143,8 @@ struct DampedModesResult {
   std::vector<RealTerm> real_terms; ///< [R] slowest first; empty without real terms
   Eigen::VectorXd offset_rad;       ///< [C] fitted constant offset per channel (the posture's
                                     ///< error; zeros when not fitted), channel units (rad)
+  int second_order_mode = -1;       ///< index in `modes` of the mode whose quadratic
+                                    ///< distortion was fitted; -1: none
   Eigen::MatrixXd fitted;           ///< (T x C) the model at t_s (modes, real terms and
                                     ///< offsets), channel units
   Eigen::MatrixXd data;             ///< (T x C) filtered, decimated data at t_s, channel units

@@ -76,6 +76,8 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
     BOOST_CHECK_MESSAGE(j["options"].contains(key), key);
   }
   BOOST_CHECK(j["options"]["offsets"].get<bool>());
+  BOOST_CHECK(j["options"]["second_order"].get<bool>());
+  BOOST_CHECK(j["second_order_mode"].get<int>() >= 0);
   BOOST_CHECK_EQUAL(j["offset_rad"].size(), 2u);
   // A Kelvin-Voigt arm has no real poles: no real term is added.
   BOOST_CHECK_EQUAL(j["real_terms"].size(), 0u);
