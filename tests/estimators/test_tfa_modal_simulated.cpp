@@ -88,10 +88,9 @@ std::string report(const Case& c) {
 BOOST_AUTO_TEST_CASE(constant_and_sigmoid_stiffness_at_20_db_three_noise_seeds) {
   // Issue 7's targets at 20 dB: over 2.6-3.175 s k11 <= 5 %, k12 <= 10 %, k22 <= 5 %; over
   // 2.6-4.5 s k11 <= 7.5 %, k12 <= 10 %, k22 <= 10 %, c11 <= 30 %, c12 and c22 <= 35 %.
-  // Checked where they hold for every noise seed 1-3 (since the posture offsets of 2026-12-02):
-  // the direct terms k11, k22, c11, c22 at 45, 90 and 135 degrees, k12 and c12 at 90 and 135.
-  // NOT met, so only printed: k12 and c12 at 45 degrees (up to 18 % and 58 %: the weak elbow
-  // channel and the arm's quadratic distortion); see docs/tfa_modal.md, "What limits it".
+  // Checked for every noise seed 1-3 at 45, 90 and 135 degrees (since the posture offsets and the
+  // quadratic distortion of 2026-12-02), except c12 with sigmoid K at 45 degrees: NOT met there
+  // (42-84 %), only printed; see docs/tfa_modal.md, "What limits it".
   for (const m::ProfileKind profile : {m::ProfileKind::constant, m::ProfileKind::sigmoid}) {
     for (const double direction : {45.0, 90.0, 135.0}) {
       for (const unsigned seed : {1u, 2u, 3u}) {
@@ -106,9 +105,9 @@ BOOST_AUTO_TEST_CASE(constant_and_sigmoid_stiffness_at_20_db_three_noise_seeds) 
         BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
         BOOST_CHECK_LE(percent_rms_error(c, true, 0, 0, 2.6, 4.5), 30.0);
         BOOST_CHECK_LE(percent_rms_error(c, true, 1, 1, 2.6, 4.5), 35.0);
-        if (direction > 60.0) {
-          BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 3.175), 10.0);
-          BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 10.0);
+        BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 3.175), 10.0);
+        BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 10.0);
+        if (profile == m::ProfileKind::constant || direction > 60.0) {
           BOOST_CHECK_LE(percent_rms_error(c, true, 0, 1, 2.6, 4.5), 35.0);
         }
         // Per-mode validity is reported; the strong mode is valid over the whole fit, and K(t)
