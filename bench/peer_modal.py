@@ -13,7 +13,9 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     through the kept estimates as the start (matrix_pencil.cpp, start_tracks);
   - uniform cubic B-spline tracks omega_j, alpha_j (knots 0.1 s) with closed-form running
     integrals (cubic_bspline.cpp);
-  - a constant offset per channel among the linear parameters (the posture's estimation error);
+  - a constant offset per channel among the linear parameters (the posture's estimation error),
+    and the strongest mode's square (exp(2 Re Phi_J), exp(2 Phi_J)) offered after the smoothest
+    fit and kept by the BIC rule (the arm's quadratic distortion);
   - variable projection with Kaufman's Jacobian, minimized by Levenberg-Marquardt, along the
     roughness continuation 0.003 .. 3 with the BIC rule;
   - the decay tie (more than one mode; opt-in, --decay-tie as stiffid's, default 0 = none): a
@@ -236,8 +238,10 @@ class VpProblem:
     theta: the track coefficients [alpha_0, omega_0, alpha_1, ...] (M each), then rho_1 ..
     rho_{n-1} when tied."""
 
-    def __init__(self, p, modes, ig, functions, terms, pairs, weight, prior, tie=DecayTie()):
+    def __init__(self, p, modes, ig, functions, terms, pairs, weight, prior, tie=DecayTie(),
+                 so_mode=-1):
         self.p, self.modes, self.ig, self.prior, self.tie = p, modes, ig, prior, tie
+        self.so_mode = so_mode  # mode whose square (exp(2 Re Phi), exp(2 Phi)) is fitted, or -1
         self.n, self.c = p["y"].shape
         self.m = ig.shape[1]
         self.igr = np.repeat(ig, self.c, axis=0)  # (N C x M)
@@ -249,6 +253,9 @@ class VpProblem:
         self.rd = self.n * self.c
         self.nt = 2 * len(terms)
         self.nl = self.nt + self.c  # then a constant whitened offset per channel (the posture's)
+        self.first_so = self.nl
+        if so_mode >= 0:  # per channel: exp(2 Re Phi_J), then Re, Im of exp(2 Phi_J)
+            self.nl += 3 * self.c
         self.tp = 2 * modes * self.m  # track parameters
         self.tied = modes - 1 if tie.sd > 0 else 0
         self.np = self.tp + self.tied
@@ -282,7 +289,18 @@ class VpProblem:
         w = (v[:, None, :] * self.t_dirs[None, :, :]).reshape(self.rd, -1)
         a = np.empty((self.rd, self.nl))
         a[:, 0:self.nt:2], a[:, 1:self.nt:2] = w.real, -w.imag
-        a[:, self.nt:] = np.tile(np.eye(self.c), (self.n, 1))
+        a[:, self.nt:self.nt + self.c] = np.tile(np.eye(self.c), (self.n, 1))
+        if self.so_mode >= 0:
+            ej = e[:, self.so_mode]
+            dc, e2 = np.abs(ej) ** 2, ej * ej
+            for k in range(self.c):
+                col = self.first_so + 3 * k
+                a[k::self.c, col] = dc
+                a[k::self.c, col + 1] = e2.real
+                a[k::self.c, col + 2] = -e2.imag
+                others = [kk for kk in range(self.c) if kk != k]
+                for kk in others:
+                    a[kk::self.c, col:col + 3] = 0.0
         return a, self.penalty
 
     def evaluate(self, theta):
@@ -335,6 +353,14 @@ class VpProblem:
         blocks = d[:self.rd, :self.tp].reshape(self.rd, self.modes, 2, self.m)
         blocks[:, :, 0, :] = self.igr[:, None, :] * y.real[:, :, None]
         blocks[:, :, 1, :] = -self.igr[:, None, :] * y.imag[:, :, None]
+        if self.so_mode >= 0:  # the square moves with mode J's decay and frequency coefficients
+            ej = self.e[:, self.so_mode]
+            dc, e2 = np.abs(ej) ** 2, ej * ej
+            b = self.beta[self.first_so:].reshape(self.c, 3)
+            ydc = 2.0 * np.outer(dc, b[:, 0]).ravel()
+            y2 = (2.0 * np.outer(e2, b[:, 1] + 1j * b[:, 2])).ravel()
+            blocks[:, self.so_mode, 0, :] += self.igr * (ydc + y2.real)[:, None]
+            blocks[:, self.so_mode, 1, :] += -self.igr * y2.imag[:, None]
         d[:, :self.tp] -= self.q @ (self.q.T @ d[:, :self.tp])
         m = self.m
         tie = np.zeros((self.tied * m, self.np))
@@ -455,6 +481,15 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     terms = [(j, np.eye(c)[k].astype(complex), 0) for j in range(modes) for k in range(c)]
     constant = np.ones((n, 1))
     grid = ROUGHNESS_GRID if o["track_roughness"] < 0 else (o["track_roughness"],)
+    # The strongest mode at the start (largest whitened amplitude of the linear solution at the
+    # start tracks) is offered its square (the arm's quadratic distortion) after the smoothest fit.
+    so_offer, so = -1, [-1]
+    if o.get("second_order", True):
+        probe0 = VpProblem(p, modes, ig, constant, terms, [], 0.0, prior_rows(track, modes, grid[0]))
+        if probe0.evaluate(theta):
+            b0 = probe0.beta
+            so_offer = int(np.argmax([np.linalg.norm(b0[2 * j * c:2 * (j + 1) * c])
+                                      for j in range(modes)]))
     # The accepted fit: its problem, theta, convergence, RSS and effective dof.
     fit = dict(problem=None, theta=theta, converged=False, rss=np.inf, dof=0.0)
 
@@ -462,7 +497,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
         """Fits one candidate from start; taken (fit) when accept(rss, dof, price) says so;
         False when it is not usable or not taken."""
         problem = VpProblem(p, modes, ig, constant, terms, [], 0.0,
-                            prior_rows(track, modes, roughness), tie)
+                            prior_rows(track, modes, roughness), tie, so[0])
         candidate, usable, conv, nfev = solve(problem, start, o["max_iterations"])
         res["iterations"] += nfev
         size = fit_size(problem, candidate, with_dof) if usable else None
@@ -484,10 +519,14 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
 
     tie, chosen = DecayTie(), 0
     for g, roughness in enumerate(grid):
-        if not try_candidate(roughness, tie, len(grid) > 1 or o["decay_tie"] < 0, fit["theta"],
-                             rougher):
+        if not try_candidate(roughness, tie, len(grid) > 1 or o["decay_tie"] < 0 or so_offer >= 0,
+                             fit["theta"], rougher):
             break
         chosen = g
+        if g == 0 and so_offer >= 0:
+            so[0] = so_offer
+            if not try_candidate(grid[0], tie, True, fit["theta"], rougher):
+                so[0] = -1
     if fit["problem"] is None:
         raise SystemExit("modal fit: no usable fit even with the smoothest tracks")
     res["track_roughness"] = grid[chosen]
@@ -534,9 +573,9 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                     if q > 0:
                         pairs.append((len(varying) - 1, len(varying)))
                     varying.append((j, basis[:, dcol], 1 + q))
-        probe = VpProblem(p, modes, ig, functions, varying, pairs, 1.0, prior, tie)
+        probe = VpProblem(p, modes, ig, functions, varying, pairs, 1.0, prior, tie, so[0])
         weight = o["shape_weight"] if o["shape_weight"] >= 0 else choose_shape_weight(probe, theta, p)
-        stage2 = VpProblem(p, modes, ig, functions, varying, pairs, weight, prior, tie)
+        stage2 = VpProblem(p, modes, ig, functions, varying, pairs, weight, prior, tie, so[0])
         theta2, usable, conv, nfev = solve(stage2, theta, o["max_iterations"])
         res["iterations"] += nfev
         if usable:
