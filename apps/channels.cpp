@@ -1,5 +1,6 @@
 #include "apps/channels.hpp"
 
+#include <cmath>
 #include <set>
 
 #include "data/error.hpp"
@@ -15,6 +16,15 @@ void check_distinct(const std::vector<std::string>& inputs, const std::vector<st
       }
     }
   }
+}
+
+data::TrialCsvOptions trial_csv_options(double sample_rate_hz) {
+  if (sample_rate_hz < 0.0 || !std::isfinite(sample_rate_hz)) {
+    throw InputError("--fs: expected a positive sampling rate in Hz");
+  }
+  data::TrialCsvOptions csv;
+  csv.sample_rate_hz = sample_rate_hz;
+  return csv;
 }
 
 }  // namespace stiffid::apps

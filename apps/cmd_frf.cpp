@@ -139,9 +139,7 @@ void run(const FrfCommandOptions& cli) {
     throw InputError("--overlap: expected a fraction in [0, 1), got " +
                      std::to_string(cli.overlap));
   }
-  if (cli.sample_rate_hz < 0.0 || !std::isfinite(cli.sample_rate_hz)) {
-    throw InputError("--fs: expected a positive sampling rate in Hz");
-  }
+  const data::TrialCsvOptions csv = trial_csv_options(cli.sample_rate_hz);
   if (cli.stiffness && inputs.size() != outputs.size()) {
     throw InputError("--stiffness: inverting the FRF needs as many outputs as inputs, got " +
                      std::to_string(outputs.size()) + " outputs and " +
@@ -153,8 +151,6 @@ void run(const FrfCommandOptions& cli) {
   options.welch.window = estimators::Window::parse(cli.window, "--window");
   options.welch.detrend = estimators::parse_detrend(cli.detrend, "--detrend");
 
-  data::TrialCsvOptions csv;
-  csv.sample_rate_hz = cli.sample_rate_hz;
   const data::Trial trial = data::read_trial_csv(cli.trial_path, csv);
   check_names(trial, inputs, "--inputs");
   check_names(trial, outputs, "--outputs");

@@ -153,12 +153,8 @@ void run(const IrfCommandOptions& cli, CLI::Option* pinv_flag) {
   const auto inputs = data::split_list(cli.inputs, "--inputs");
   const auto outputs = data::split_list(cli.outputs, "--outputs");
   check_distinct(inputs, outputs);
-  if (cli.sample_rate_hz < 0.0 || !std::isfinite(cli.sample_rate_hz)) {
-    throw InputError("--fs: expected a positive sampling rate in Hz");
-  }
+  const data::TrialCsvOptions csv = trial_csv_options(cli.sample_rate_hz);
   parse_lag_range_s(cli.lags);  // syntax errors before reading the file
-  data::TrialCsvOptions csv;
-  csv.sample_rate_hz = cli.sample_rate_hz;
   const data::Trial trial = data::read_trial_csv(cli.trial_path, csv);
   std::tie(options.first_lag, options.last_lag) = lags_in_samples(cli.lags, trial.sample_rate_hz);
   data::require_samples(trial, options.last_lag - options.first_lag + 2,

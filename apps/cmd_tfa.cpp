@@ -41,6 +41,7 @@
 #include <string>
 #include <vector>
 
+#include "apps/channels.hpp"
 #include "apps/commands.hpp"
 #include "data/csv.hpp"
 #include "data/error.hpp"
@@ -192,11 +193,7 @@ void run(TfaCommandOptions cli) {
   o.spectrogram.window = estimators::TfWindow::parse(cli.window, "--window");
   if (!cli.subject_path.empty()) o.arm = read_subject(cli.subject_path);
 
-  if (!std::isfinite(cli.sample_rate_hz) || cli.sample_rate_hz < 0.0) {
-    throw InputError("--fs: expected a positive sampling rate in Hz");
-  }
-  data::TrialCsvOptions csv;
-  csv.sample_rate_hz = cli.sample_rate_hz;
+  const data::TrialCsvOptions csv = trial_csv_options(cli.sample_rate_hz);
   const data::Trial trial = data::read_trial_csv(cli.trial_path, csv);
   // --onset auto without --forces: the force channels fx, fy when the trial has both (the
   // simulator's and the manipulandum exports' names); detect_onset_s names what is missing.

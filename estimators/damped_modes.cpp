@@ -948,7 +948,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // The strongest mode at the start (largest whitened amplitude of the linear solution at the
   // start tracks) gets the second-order terms.
   int so_mode = -1;
-  if (options.second_order && modes > 0) {
+  if (options.second_order) {
     const VpProblem probe(p, modes, integrals, constant, terms, {}, 0.0,
                           prior_rows(track, modes, grid[0]), DecayTie{}, real, options.offsets);
     Eigen::VectorXd beta0;

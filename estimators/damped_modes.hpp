@@ -96,8 +96,9 @@ struct DampedModesOptions {
                                         ///< mean), rad
   bool second_order = true;             ///< design whole: also fit the quadratic distortion of
                                         ///< the strongest mode j (the arm's Coriolis and
-                                        ///< centripetal terms): b_k exp(2 Re Phi_j) + Re(d_k
-                                        ///< exp(2 Phi_j)) per channel, linear amplitudes
+                                        ///< centripetal terms): s_k exp(2 Re Phi_j) + Re(h_k
+                                        ///< exp(2 Phi_j)) per channel, linear amplitudes, kept
+                                        ///< when they pay by the roughness rule
 };
 
 /// One real term of the fit: b_k exp(beta tau), tau from the first fitted sample.
@@ -145,8 +146,8 @@ struct DampedModesResult {
                                     ///< error; zeros when not fitted), channel units (rad)
   int second_order_mode = -1;       ///< index in `modes` of the mode whose quadratic
                                     ///< distortion was fitted; -1: none
-  Eigen::MatrixXd fitted;           ///< (T x C) the model at t_s (modes, real terms and
-                                    ///< offsets), channel units
+  Eigen::MatrixXd fitted;           ///< (T x C) the model at t_s (modes, real terms, offsets
+                                    ///< and second-order terms), channel units
   Eigen::MatrixXd data;             ///< (T x C) filtered, decimated data at t_s, channel units
   MatrixPencilResult start;         ///< global matrix pencil over the fitted samples
   double shape_weight = 0.0;        ///< shape-change penalty used
