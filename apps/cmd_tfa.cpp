@@ -58,6 +58,7 @@ struct TfaCommandOptions {
   std::string trial_path, angles, forces, onset, method = "modal", baseline_path,
       subject_path, window = "kaiser:3", output_path, spectrogram_path;
   double sample_rate_hz = 0.0;  // --fs, Hz: for files without a t column (0: from t)
+  bool no_shape_refit = false;
   estimators::TfaOptions tfa;
 };
 
@@ -180,6 +181,7 @@ void run(TfaCommandOptions cli) {
   estimators::TfaOptions& o = cli.tfa;
   o.method = estimators::parse_tfa_method(cli.method);
   o.modes.design = estimators::parse_modal_design(cli.design);
+  o.modes.shape_refit = !cli.no_shape_refit;
   if (!cli.spectrogram_path.empty() && o.method != estimators::TfaMethod::spectrogram) {
     throw InputError("--spectrogram: the time-frequency map exists only with --method spectrogram");
   }
@@ -246,6 +248,7 @@ void run(TfaCommandOptions cli) {
                            {"real_terms_from_data", mo.real_terms < 0},
                            {"offsets", mo.offsets && mo.design == estimators::ModalDesign::whole},
                            {"second_order", r.modes.second_order_mode >= 0},
+                           {"shape_refit", r.modes.shape_refit},
                            {"mapping", "state_space"}});
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
     out["converged"] = r.modes.converged;
@@ -409,6 +412,9 @@ void add_tfa_command(CLI::App& app) {
   sub->add_option("--shape-weight", o.modes.shape_weight,
                   "modal: weight of the penalty on mode-shape changes (< 0: chosen from the data)")
       ->capture_default_str();
+  sub->add_flag("--no-shape-refit", cli->no_shape_refit,
+                "modal: do not refit smoother tracks with varying mode shapes when the "
+                "constant-shape fit chose rough tracks (docs/tfa_modal.md, \"Shape refit\")");
   sub->add_option("--baseline", cli->baseline_path,
                   "unperturbed trial (same angle channels and rate); default: the posture is "
                   "the mean over 0.2 s before the onset");

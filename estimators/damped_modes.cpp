@@ -353,6 +353,8 @@ class VpProblem {
 
   int residuals_count() const { return residuals(); }
   const std::vector<LinearTerm>& terms() const { return terms_; }
+  const DecayTie& tie() const { return tie_; }
+  double shape_weight() const { return sqrt_weight_ * sqrt_weight_; }
 
  private:
   const Prepared& p_;
@@ -552,10 +554,26 @@ double choose_shape_weight(const VpProblem& problem, const Eigen::VectorXd& thet
   return best;
 }
 
+// Effective number of linear parameters at theta: their count, or with a shape penalty the trace
+// of its linear smoother, tr((A^T A + w R^T R)^+ A^T A) (A data rows, R penalty rows).
+double linear_effective_parameters(const VpProblem& problem, const Eigen::VectorXd& theta) {
+  if (problem.penalty_rows() == 0) return problem.linear();
+  Eigen::MatrixXcd e;
+  Eigen::MatrixXd er, a, r;
+  if (!problem.oscillations(theta.data(), e) || !problem.real_exponentials(theta.data(), er))
+    return problem.linear();
+  problem.design(e, er, a, r);
+  Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(a.cols(), a.cols());
+  ata.selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
+  ata.triangularView<Eigen::StrictlyUpper>() = ata.transpose();
+  const Eigen::MatrixXd normal = ata + problem.shape_weight() * (r.transpose() * r);
+  return Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(normal).solve(ata).trace();
+}
+
 // Size of a converged fit: the whitened residual sum of squares of the data rows and, when asked,
 // the effective number of parameters (trace of the linearized influence of the track
-// coefficients, data rows of the Jacobian against data + prior rows, plus the number of linear
-// parameters), from one evaluation. False when the model cannot be evaluated at theta.
+// coefficients, data rows of the Jacobian against data + prior rows, plus the effective number
+// of linear parameters), from one evaluation. False when the model cannot be evaluated at theta.
 bool fit_size(const VpProblem& problem, const Eigen::VectorXd& theta, bool with_dof, double& rss,
               double& dof) {
   Eigen::VectorXd residual(problem.residuals());
@@ -577,7 +595,8 @@ bool fit_size(const VpProblem& problem, const Eigen::VectorXd& theta, bool with_
     Eigen::MatrixXd normal = prior;
     normal.selfadjointView<Eigen::Lower>().rankUpdate(jd.transpose());
     normal.triangularView<Eigen::StrictlyUpper>() = normal.transpose();
-    dof = np - Eigen::LDLT<Eigen::MatrixXd>(normal).solve(prior).trace() + problem.linear();
+    dof = np - Eigen::LDLT<Eigen::MatrixXd>(normal).solve(prior).trace() +
+          linear_effective_parameters(problem, theta);
   }
   return true;
 }
@@ -964,6 +983,14 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       }
     }
   }
+  // The linear design of the fits: constant mode shapes (stage 1) or slowly varying ones.
+  struct Design {
+    Eigen::MatrixXd functions;
+    std::vector<LinearTerm> terms;
+    std::vector<std::pair<int, int>> pairs;
+    double weight = 0.0;
+  };
+  Design design{constant, terms, {}, 0.0};
   std::unique_ptr<VpProblem> stage1;
   StageOutcome outcome;
   DecayTie tie;
@@ -974,7 +1001,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   auto try_candidate = [&](double roughness, const DecayTie& candidate_tie, bool with_dof,
                            const Eigen::VectorXd& start, auto&& accept) {
     auto problem = std::make_unique<VpProblem>(
-        p, modes, integrals, constant, terms, std::vector<std::pair<int, int>>{}, 0.0,
+        p, modes, integrals, design.functions, design.terms, design.pairs, design.weight,
         prior_rows(track, modes, roughness), candidate_tie, real, options.offsets, so_mode);
     Eigen::VectorXd candidate = start;
     const StageOutcome o = solve(*problem, candidate, options.max_iterations);
@@ -994,6 +1021,44 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   auto rougher = [&](double rss, double dof, double price) {
     return previous_rss - rss > price * (dof - previous_dof);
   };
+  // The shape design of stage 2 from a constant-shape fit: the common amplitude and phase of mode
+  // j stay with alpha_j, omega_j (eq 47): only the components orthogonal (in whitened space) to
+  // its fitted shape u_j vary, as cubic splines whose first differences are penalized with the
+  // weight given or chosen by GCV at the fit's tracks.
+  const double length_s = p.tau_s(n - 1);
+  const bool shapes =
+      options.shape_knot_spacing_s > 0.0 && c > 1 && length_s > options.shape_knot_spacing_s;
+  auto shape_design = [&](const VpProblem& fitted, const Eigen::VectorXd& at, double roughness) {
+    Eigen::VectorXd beta(fitted.linear());
+    std::vector<double> scratch(fitted.residuals());
+    fitted.evaluate(at.data(), scratch.data(), nullptr, &beta);
+    const UniformCubicBspline shape(length_s, options.shape_knot_spacing_s);
+    Design d;
+    d.functions.resize(n, 1 + shape.size());
+    d.functions << constant, shape.values(p.tau_s);
+    for (int j = 0; j < modes; ++j) {
+      Eigen::VectorXcd u(c);
+      for (int k = 0; k < c; ++k) u(k) = Complex(beta(2 * (j * c + k)), beta(2 * (j * c + k) + 1));
+      if (!(u.norm() > 0.0)) u = Eigen::VectorXcd::Unit(c, 0);
+      const Eigen::MatrixXcd basis = complete_basis(u);
+      d.terms.push_back({j, basis.col(0), 0});
+      for (int b = 1; b < c; ++b)
+        for (int q = 0; q < shape.size(); ++q) {
+          if (q > 0)
+            d.pairs.emplace_back(static_cast<int>(d.terms.size()) - 1,
+                                 static_cast<int>(d.terms.size()));
+          d.terms.push_back({j, basis.col(b), 1 + q});
+        }
+    }
+    d.weight = options.shape_weight;
+    if (d.weight < 0.0) {
+      const VpProblem probe(p, modes, integrals, d.functions, d.terms, d.pairs, 1.0,
+                            prior_rows(track, modes, roughness), fitted.tie(), real,
+                            options.offsets, fitted.second_order_mode());
+      d.weight = choose_shape_weight(probe, at, p);
+    }
+    return d;
+  };
   // The second-order terms are offered at the smoothest roughness, after the fit without them,
   // and kept only when they pay for their 3 C parameters by the same rule: on a record where the
   // distortion is below the noise they could otherwise trade with a mode that has sunk into it
@@ -1001,6 +1066,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   const int so_offer = so_mode;
   so_mode = -1;
   std::size_t chosen = 0;
+  Eigen::VectorXd smoothest;  // the smoothest constant-shape fit, where the shape stage may start
   for (std::size_t g = 0; g < grid.size(); ++g) {
     if (!try_candidate(grid[g], tie, grid.size() > 1 || options.decay_tie < 0.0 || so_offer >= 0,
                        theta, rougher))
@@ -1010,6 +1076,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       so_mode = so_offer;
       if (!try_candidate(grid[0], tie, true, theta, rougher)) so_mode = -1;
     }
+    if (g == 0) smoothest = theta;
   }
   if (!stage1) {
     result.status = Status::failure("modal fit: no usable fit even with the smoothest tracks");
@@ -1050,42 +1117,14 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       result.track_roughness = grid[g];
     }
   }
-  const Eigen::MatrixXd prior = prior_rows(track, modes, result.track_roughness);
   std::unique_ptr<VpProblem> final_problem = std::move(stage1);
 
-  // Stage 2: slowly varying mode shapes. The common amplitude and phase of mode j stay with
-  // alpha_j, omega_j (eq 47): only the components orthogonal (in whitened space) to the stage-1
-  // shape u_j vary, as cubic splines whose first differences are penalized.
-  const double length_s = p.tau_s(n - 1);
-  if (outcome.usable && options.shape_knot_spacing_s > 0.0 && c > 1 &&
-      length_s > options.shape_knot_spacing_s) {
-    Eigen::VectorXd beta(final_problem->linear());
-    std::vector<double> scratch(final_problem->residuals());
-    final_problem->evaluate(theta.data(), scratch.data(), nullptr, &beta);
-    const UniformCubicBspline shape(length_s, options.shape_knot_spacing_s);
-    Eigen::MatrixXd functions(n, 1 + shape.size());
-    functions << constant, shape.values(p.tau_s);
-    std::vector<LinearTerm> varying;
-    std::vector<std::pair<int, int>> pairs;
-    for (int j = 0; j < modes; ++j) {
-      Eigen::VectorXcd u(c);
-      for (int k = 0; k < c; ++k) u(k) = Complex(beta(2 * (j * c + k)), beta(2 * (j * c + k) + 1));
-      if (!(u.norm() > 0.0)) u = Eigen::VectorXcd::Unit(c, 0);
-      const Eigen::MatrixXcd basis = complete_basis(u);
-      varying.push_back({j, basis.col(0), 0});
-      for (int d = 1; d < c; ++d)
-        for (int q = 0; q < shape.size(); ++q) {
-          if (q > 0) pairs.emplace_back(static_cast<int>(varying.size()) - 1,
-                                        static_cast<int>(varying.size()));
-          varying.push_back({j, basis.col(d), 1 + q});
-        }
-    }
-    auto probe = std::make_unique<VpProblem>(p, modes, integrals, functions, varying, pairs, 1.0,
-                                             prior, tie, real, options.offsets, so_mode);
-    const double weight =
-        options.shape_weight >= 0.0 ? options.shape_weight : choose_shape_weight(*probe, theta, p);
-    auto stage2 = std::make_unique<VpProblem>(p, modes, integrals, functions, varying, pairs,
-                                              weight, prior, tie, real, options.offsets, so_mode);
+  // Stage 2: slowly varying mode shapes, at the chosen tracks.
+  if (outcome.usable && shapes) {
+    const Design d = shape_design(*final_problem, theta, result.track_roughness);
+    auto stage2 = std::make_unique<VpProblem>(
+        p, modes, integrals, d.functions, d.terms, d.pairs, d.weight,
+        prior_rows(track, modes, result.track_roughness), tie, real, options.offsets, so_mode);
     Eigen::VectorXd theta2 = theta;
     const StageOutcome outcome2 = solve(*stage2, theta2, options.max_iterations);
     result.iterations += outcome2.iterations;
@@ -1093,7 +1132,90 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       theta = theta2;
       outcome = outcome2;
       final_problem = std::move(stage2);
-      result.shape_weight = weight;
+      result.shape_weight = d.weight;
+    }
+  }
+
+  // Shape refit. Stage 1's continuation runs with constant shapes, so mode shapes that change
+  // within the trial (only k22 modulated, a rotating stiffness ellipse) can only be followed by
+  // rougher tracks, which then trade with the shapes (docs/tfa_modal.md, "Shape refit"). When
+  // it chose tracks rougher than the smoothest, the other explanation is fitted too: the shape
+  // stage from the smoothest fit, the roughness continuation (same rule) in it up to, not
+  // including, stage 1's choice, the shape weight re-chosen by GCV at its tracks. It replaces
+  // the result when its BIC, RSS + ln(N) s^2 (effective parameters, the shapes' by the trace of
+  // their penalized smoother), is lower and its frequency tracks do not cross.
+  if (options.shape_refit && outcome.usable && shapes && options.shape_weight < 0.0 &&
+      grid.size() > 1 && tie.sd == 0.0 && smoothest.size() > 0) {
+    const VpProblem base(p, modes, integrals, constant, terms, {}, 0.0,
+                         prior_rows(track, modes, grid[0]), DecayTie{}, real, options.offsets,
+                         so_mode);
+    design = shape_design(base, smoothest, grid[0]);
+    std::unique_ptr<VpProblem> first_problem = std::move(final_problem);
+    const Eigen::VectorXd first_theta = theta;
+    const StageOutcome first_outcome = outcome;
+    stage1.reset();
+    previous_rss = std::numeric_limits<double>::infinity();
+    previous_dof = 0.0;
+    double refit_roughness = -1.0;
+    for (std::size_t g = 0; g < grid.size() && grid[g] < result.track_roughness; ++g) {
+      if (!try_candidate(grid[g], tie, true, g == 0 ? smoothest : theta, rougher)) break;
+      refit_roughness = grid[g];
+    }
+    bool take_refit = false;
+    // Tracks that cross: on a coupled arm the two frequencies avoid each other (a crossing is
+    // one mode's shape taking over the other's), so such a refit is not taken.
+    auto crossing = [&](const Eigen::VectorXd& at) {
+      const Eigen::MatrixXd values = track.values(p.tau_s);
+      for (int j = 0; j < modes; ++j)
+        for (int l = j + 1; l < modes; ++l) {
+          const Eigen::ArrayXd gap =
+              values * (at.segment((2 * j + 1) * m, m) - at.segment((2 * l + 1) * m, m));
+          if (gap.maxCoeff() > 0.0 && gap.minCoeff() < 0.0) return true;
+        }
+      return false;
+    };
+    if (stage1) {
+      const VpProblem probe(p, modes, integrals, design.functions, design.terms, design.pairs, 1.0,
+                            prior_rows(track, modes, refit_roughness), tie, real, options.offsets,
+                            so_mode);
+      const double w = choose_shape_weight(probe, theta, p);
+      if (w != design.weight) {
+        auto again = std::make_unique<VpProblem>(
+            p, modes, integrals, design.functions, design.terms, design.pairs, w,
+            prior_rows(track, modes, refit_roughness), tie, real, options.offsets, so_mode);
+        Eigen::VectorXd theta2 = theta;
+        const StageOutcome o = solve(*again, theta2, options.max_iterations);
+        result.iterations += o.iterations;
+        if (o.usable) {
+          theta = theta2;
+          outcome = o;
+          stage1 = std::move(again);
+          design.weight = w;
+        }
+      }
+      double rss_first = 0.0, dof_first = 0.0, rss_refit = 0.0, dof_refit = 0.0;
+      if (fit_size(*first_problem, first_theta, true, rss_first, dof_first) &&
+          fit_size(*stage1, theta, true, rss_refit, dof_refit)) {
+        const double rows = stage1->data_rows();
+        const double variance =
+            std::max(1.0, std::min(rss_first / std::max(1.0, rows - dof_first),
+                                   rss_refit / std::max(1.0, rows - dof_refit)));
+        const double price = std::log(rows) * variance;
+        auto sane = [&](double dof) { return std::isfinite(dof) && dof >= 0.0 && dof < rows; };
+        take_refit = sane(dof_first) && sane(dof_refit) &&
+                     rss_refit + price * dof_refit < rss_first + price * dof_first &&
+                     !crossing(theta);
+      }
+    }
+    if (take_refit) {
+      final_problem = std::move(stage1);
+      result.track_roughness = refit_roughness;
+      result.shape_weight = design.weight;
+      result.shape_refit = true;
+    } else {
+      final_problem = std::move(first_problem);
+      theta = first_theta;
+      outcome = first_outcome;
     }
   }
 

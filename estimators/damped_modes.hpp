@@ -94,6 +94,11 @@ struct DampedModesOptions {
                                         ///< channel (linear), the error of the posture the
                                         ///< deviations are taken from (the 0.2 s pre-onset
                                         ///< mean), rad
+  bool shape_refit = true;              ///< design whole, shapes and roughness from the data:
+                                        ///< when the constant-shape continuation chose tracks
+                                        ///< rougher than the smoothest, also fit smoother tracks
+                                        ///< with the varying shapes from the start; kept when
+                                        ///< its BIC is lower (docs/tfa_modal.md, "Shape refit")
   bool second_order = true;             ///< design whole: also fit the quadratic distortion of
                                         ///< the strongest mode j (the arm's Coriolis and
                                         ///< centripetal terms): s_k exp(2 Re Phi_j) + Re(h_k
@@ -151,6 +156,8 @@ struct DampedModesResult {
   Eigen::MatrixXd data;             ///< (T x C) filtered, decimated data at t_s, channel units
   MatrixPencilResult start;         ///< global matrix pencil over the fitted samples
   double shape_weight = 0.0;        ///< shape-change penalty used
+  bool shape_refit = false;         ///< the shape refit replaced the constant-shape continuation's
+                                    ///< result (track_roughness and shape_weight are the refit's)
   double track_roughness = 0.0;     ///< track roughness prior SD used, rad/s and 1/s
   double decay_tie = 0.0;           ///< decay-tie prior SD used (relative); 0: none
   double residual_rms_whitened = 0.0;  ///< RMS whitened data residual (1 = noise level)

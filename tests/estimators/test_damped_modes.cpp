@@ -239,6 +239,53 @@ BOOST_AUTO_TEST_CASE(the_strongest_modes_quadratic_distortion_is_fitted) {
   BOOST_CHECK_GT(worst, 1e-2);  // ten times the tolerance the terms keep
 }
 
+BOOST_AUTO_TEST_CASE(mode_shapes_that_rotate_are_fitted_as_shapes_not_as_rough_tracks) {
+  // Both mode shapes of spline_exact_modes() turn by a real rotation R(phi), phi = 0.25 rad/s
+  // tau (0.6 rad over the fit), as the eigenvectors of a stiffness ellipse that rotates or
+  // changes shape do: |a_j| stays constant, so the tracks are those of the closed form. Stage 1
+  // (constant shapes) can follow the change only with rough tracks, which trade with it; the
+  // shape refit explains it by the shapes, with the smoothest tracks. 20 dB.
+  const auto [m1, m2] = spline_exact_modes();
+  const int s = static_cast<int>(5.0 * kRateHz);
+  Eigen::MatrixXd x = Eigen::MatrixXd::Zero(s, 2);
+  for (int i = 0; i < s; ++i) {
+    const double tau = i / kRateHz - kFreeS;
+    if (tau < 0.0) continue;
+    const double phi = 0.25 * tau;
+    for (const ClosedFormMode* m : {&m1, &m2}) {
+      const std::complex<double> e = std::exp(m->phi(tau));
+      x(i, 0) += ((std::cos(phi) * m->a0 - std::sin(phi) * m->a1) * e).real();
+      x(i, 1) += ((std::sin(phi) * m->a0 + std::cos(phi) * m->a1) * e).real();
+    }
+  }
+  add_noise(x, 20.0, 7);
+  const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  DampedModesOptions without;
+  without.shape_refit = false;
+  const DampedModesResult rough = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, without);
+  BOOST_REQUIRE_MESSAGE(rough.status.ok, rough.status.message);
+  BOOST_CHECK(r.shape_refit);
+  BOOST_CHECK(!rough.shape_refit);
+  BOOST_CHECK_LT(r.track_roughness, rough.track_roughness);
+  BOOST_CHECK_LT(r.shape_weight, 1.0);  // the shapes vary
+  for (int j = 0; j < 2; ++j) {
+    const Errors e = track_errors(r, j, j == 0 ? m1 : m2, 2.6, 4.5);
+    const Errors w = track_errors(rough, j, j == 0 ? m1 : m2, 2.6, 4.5);
+    BOOST_TEST_MESSAGE("mode " << j << ", refit (roughness " << r.track_roughness << ", weight "
+                               << r.shape_weight << "): f " << e.f_rel << ", alpha " << e.alpha_rel
+                               << "; constant shapes (roughness " << rough.track_roughness
+                               << "): f " << w.f_rel << ", alpha " << w.alpha_rel);
+    // Measured 0.6 / 0.8 % (f) and 2.1 / 4.8 % (alpha): the shapes' freedom costs precision
+    // (the weak mode's orthogonal component trades with its track), but the constant-shape fit
+    // is off by 2 / 13 % and 9 / 114 %.
+    BOOST_CHECK_LE(e.f_rel, 0.01);
+    BOOST_CHECK_LE(e.alpha_rel, 0.06);
+    BOOST_CHECK_EQUAL(e.valid, e.samples);
+    BOOST_CHECK_GT(w.alpha_rel, 2.0 * e.alpha_rel);
+  }
+}
+
 BOOST_AUTO_TEST_CASE(close_modes_with_a_weak_one_at_20_db_within_one_percent) {
   const std::vector<ClosedFormMode> modes = close_modes(0.26);
   const double weak = energy_fraction(modes, 1);

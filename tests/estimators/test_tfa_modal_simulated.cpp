@@ -170,6 +170,44 @@ BOOST_AUTO_TEST_CASE(noise_free_trials_are_valid_and_accurate) {
   }
 }
 
+BOOST_AUTO_TEST_CASE(a_rotating_stiffness_ellipse_is_followed_by_the_mode_shapes) {
+  // models/specs/piovesan_posture_rotating.json: K = R(phi) K0 R(phi)^T with phi from 0 to 30
+  // degrees along the sigmoid and C = 0.01 K, so the mode shapes turn within the trial. 20 dB,
+  // seed 1. Issue 7's targets for such trials over 2.6-4.5 s: k11, k22 <= 10 %, k12 <= 25 %.
+  // With constant shapes the roughness continuation follows the turn with rough tracks (k22
+  // 47 % at 90 degrees, k12 29 % at 135); the shape refit takes it into the shapes.
+  const std::string specs = std::string(STIFFID_SOURCE_DIR) + "/models/specs/";
+  for (const double direction : {90.0, 135.0}) {
+    m::TrialSpec spec = m::read_trial_spec(specs + "piovesan_posture_rotating.json");
+    spec.perturbations.pulses.at(0).random_octant = false;
+    spec.perturbations.pulses.at(0).direction_rad = direction * M_PI / 180.0;
+    spec.noise.snr_db = 20.0;
+    std::mt19937_64 rng(1);
+    Case c{m::simulate(spec, rng), {}};
+    BOOST_REQUIRE(c.sim.status.ok);
+    est::TfaOptions o;
+    o.deviation.angle_channels = {"th1", "th2"};
+    o.deviation.onset_s = 2.5;
+    c.tfa = est::identify_tfa(c.sim.trial, o);
+    BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
+    BOOST_TEST_MESSAGE("rotating, " << direction << " deg (roughness "
+                                    << c.tfa.modes.track_roughness << ", shape weight "
+                                    << c.tfa.modes.shape_weight << "):" << report(c));
+    BOOST_CHECK(c.tfa.modes.shape_refit);
+    BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 10.0);
+    BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
+    BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 25.0);
+    BOOST_CHECK_GE(k_valid_share(c, 2.6, 4.5), 0.9);
+    Case without = c;
+    o.modes.shape_refit = false;
+    without.tfa = est::identify_tfa(c.sim.trial, o);
+    BOOST_REQUIRE_MESSAGE(without.tfa.status.ok, without.tfa.status.message);
+    BOOST_TEST_MESSAGE("  without the refit:" << report(without));
+    BOOST_CHECK(percent_rms_error(without, false, 1, 1, 2.6, 4.5) > 10.0 ||
+                percent_rms_error(without, false, 0, 1, 2.6, 4.5) > 25.0);
+  }
+}
+
 BOOST_AUTO_TEST_CASE(poynting_thomson_posture_trial_is_fitted_with_a_real_term) {
   // Poynting-Thomson joints (models/specs/piovesan_reach_poynting_thomson.json: its element and
   // 90-degree impulse, at the posture of piovesan_posture_constant.json), noise-free. The posture
