@@ -27,6 +27,10 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     continuation then resumes from the chosen roughness by the same rule as before;
   - stage 2 with slowly varying mode shapes (knots 0.5 s, orthogonal to the stage-1 shapes,
     first-difference penalty whose weight GCV chooses over 1e-3 .. 1e6; the tie rows kept);
+  - the shape refit (no tie; stage 1 rougher than the smoothest): stage 2's design from the
+    smoothest fit, the roughness continuation in it below stage 1's choice, the weight
+    re-chosen by GCV, kept when its BIC (the shapes' effective dof from the trace of their
+    penalized smoother) is lower and its frequency tracks do not cross;
     posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including the mode-to-data power and
     separation checks (damped_modes.cpp);
   - eqs 45-46 and the state-space mapping to K(t), C(t), P(t) (modal_parameters.cpp), the
@@ -393,8 +397,23 @@ def fit_size(problem, theta, with_dof):
     if with_dof:
         j = problem.jacobian(theta)
         jd = j[:problem.rd]
-        dof = np.trace(scipy.linalg.solve(j.T @ j, jd.T @ jd, assume_a="sym")) + problem.nl
+        dof = (np.trace(scipy.linalg.solve(j.T @ j, jd.T @ jd, assume_a="sym"))
+               + linear_effective(problem, theta))
     return rss, dof
+
+
+def linear_effective(problem, theta):
+    """Effective number of linear parameters: their count, or with a shape penalty the trace
+    of the penalized linear smoother, tr((A^T A + w R^T R)^+ A^T A)."""
+    if problem.rp == 0:
+        return problem.nl
+    e = problem.oscillations(theta)
+    if e is None:
+        return problem.nl
+    a, r = problem.design(e)
+    ata = a.T @ a
+    return float(np.trace(np.linalg.lstsq(ata + problem.sqrt_weight ** 2 * (r.T @ r), ata,
+                                          rcond=None)[0]))
 
 
 def prior_rows(track, modes, roughness):
@@ -492,12 +511,14 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                                       for j in range(modes)]))
     # The accepted fit: its problem, theta, convergence, RSS and effective dof.
     fit = dict(problem=None, theta=theta, converged=False, rss=np.inf, dof=0.0)
+    # The linear design of the candidates: constant shapes (stage 1) or slowly varying ones.
+    design = dict(functions=constant, terms=terms, pairs=[], weight=0.0)
 
     def try_candidate(roughness, tie, with_dof, start, accept):
         """Fits one candidate from start; taken (fit) when accept(rss, dof, price) says so;
         False when it is not usable or not taken."""
-        problem = VpProblem(p, modes, ig, constant, terms, [], 0.0,
-                            prior_rows(track, modes, roughness), tie, so[0])
+        problem = VpProblem(p, modes, ig, design["functions"], design["terms"], design["pairs"],
+                            design["weight"], prior_rows(track, modes, roughness), tie, so[0])
         candidate, usable, conv, nfev = solve(problem, start, o["max_iterations"])
         res["iterations"] += nfev
         size = fit_size(problem, candidate, with_dof) if usable else None
@@ -517,7 +538,37 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     def tighter(rss, dof, price):  # BIC: the RSS rise stays within the saved effective dof
         return o["decay_tie"] > 0 or rss - fit["rss"] <= price * (fit["dof"] - dof)
 
-    tie, chosen = DecayTie(), 0
+    length_s = p["tau_s"][-1]
+    shapes = o["shape_knot_spacing_s"] > 0 and c > 1 and length_s > o["shape_knot_spacing_s"]
+    shape = Bspline(length_s, o["shape_knot_spacing_s"]) if shapes else None
+
+    def shape_design(fitted, at, roughness):
+        """Stage 2's design from a constant-shape fit: the components orthogonal (whitened) to
+        each mode's fitted shape vary as splines with a first-difference penalty, its weight
+        given or chosen by GCV at the fit's tracks."""
+        fitted.evaluate(at)
+        beta = fitted.beta
+        functions = np.hstack([constant, shape.values(p["tau_s"])])
+        varying, pairs = [], []
+        for j in range(modes):
+            u = beta[2 * j * c:2 * (j + 1) * c:2] + 1j * beta[2 * j * c + 1:2 * (j + 1) * c:2]
+            if not np.linalg.norm(u) > 0:
+                u = np.eye(c)[0].astype(complex)
+            basis = complete_basis(u)
+            varying.append((j, basis[:, 0], 0))
+            for dcol in range(1, c):
+                for q in range(shape.size):
+                    if q > 0:
+                        pairs.append((len(varying) - 1, len(varying)))
+                    varying.append((j, basis[:, dcol], 1 + q))
+        d = dict(functions=functions, terms=varying, pairs=pairs, weight=o["shape_weight"])
+        if d["weight"] < 0:
+            probe = VpProblem(p, modes, ig, functions, varying, pairs, 1.0,
+                              prior_rows(track, modes, roughness), fitted.tie, fitted.so_mode)
+            d["weight"] = choose_shape_weight(probe, at, p)
+        return d
+
+    tie, chosen, smoothest = DecayTie(), 0, None
     for g, roughness in enumerate(grid):
         if not try_candidate(roughness, tie, len(grid) > 1 or o["decay_tie"] < 0 or so_offer >= 0,
                              fit["theta"], rougher):
@@ -527,6 +578,8 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
             so[0] = so_offer
             if not try_candidate(grid[0], tie, True, fit["theta"], rougher):
                 so[0] = -1
+        if g == 0:
+            smoothest = fit["theta"]
     if fit["problem"] is None:
         raise SystemExit("modal fit: no usable fit even with the smoothest tracks")
     res["track_roughness"] = grid[chosen]
@@ -552,36 +605,74 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                 break
             res["track_roughness"] = grid[g]
     theta, converged, final = fit["theta"], fit["converged"], fit["problem"]
-    prior = prior_rows(track, modes, res["track_roughness"])
 
-    length_s = p["tau_s"][-1]
-    shape = None
-    if o["shape_knot_spacing_s"] > 0 and c > 1 and length_s > o["shape_knot_spacing_s"]:
-        final.evaluate(theta)
-        beta = final.beta
-        shape = Bspline(length_s, o["shape_knot_spacing_s"])
-        functions = np.hstack([constant, shape.values(p["tau_s"])])
-        varying, pairs = [], []
-        for j in range(modes):
-            u = beta[2 * j * c:2 * (j + 1) * c:2] + 1j * beta[2 * j * c + 1:2 * (j + 1) * c:2]
-            if not np.linalg.norm(u) > 0:
-                u = np.eye(c)[0].astype(complex)
-            basis = complete_basis(u)
-            varying.append((j, basis[:, 0], 0))
-            for dcol in range(1, c):
-                for q in range(shape.size):
-                    if q > 0:
-                        pairs.append((len(varying) - 1, len(varying)))
-                    varying.append((j, basis[:, dcol], 1 + q))
-        probe = VpProblem(p, modes, ig, functions, varying, pairs, 1.0, prior, tie, so[0])
-        weight = o["shape_weight"] if o["shape_weight"] >= 0 else choose_shape_weight(probe, theta, p)
-        stage2 = VpProblem(p, modes, ig, functions, varying, pairs, weight, prior, tie, so[0])
+    if shapes:
+        d = shape_design(final, theta, res["track_roughness"])
+        stage2 = VpProblem(p, modes, ig, d["functions"], d["terms"], d["pairs"], d["weight"],
+                           prior_rows(track, modes, res["track_roughness"]), tie, so[0])
         theta2, usable, conv, nfev = solve(stage2, theta, o["max_iterations"])
         res["iterations"] += nfev
         if usable:
-            theta, converged, final, res["shape_weight"] = theta2, conv, stage2, weight
+            theta, converged, final, res["shape_weight"] = theta2, conv, stage2, d["weight"]
         else:
             shape = None
+
+    # Shape refit (damped_modes.cpp): when stage 1 chose tracks rougher than the smoothest, the
+    # shape stage from the smoothest fit, the roughness continuation in it below stage 1's
+    # choice, the weight re-chosen at its tracks; kept when its BIC is lower and its frequency
+    # tracks do not cross.
+    res["shape_refit"] = False
+    if (o.get("shape_refit", True) and shape is not None and o["shape_weight"] < 0
+            and len(grid) > 1 and tie.sd == 0 and smoothest is not None
+            and res["track_roughness"] > grid[0]):
+        base = VpProblem(p, modes, ig, constant, terms, [], 0.0, prior_rows(track, modes, grid[0]),
+                         DecayTie(), so[0])
+        design.update(shape_design(base, smoothest, grid[0]))
+        first = (final, theta, converged)
+        fit.update(problem=None, rss=np.inf, dof=0.0)
+        refit_roughness = None
+        for g, roughness in enumerate(grid):
+            if roughness >= res["track_roughness"]:
+                break
+            if not try_candidate(roughness, tie, True, smoothest if g == 0 else fit["theta"],
+                                 rougher):
+                break
+            refit_roughness = roughness
+        take = False
+        if fit["problem"] is not None:
+            prior = prior_rows(track, modes, refit_roughness)
+            probe = VpProblem(p, modes, ig, design["functions"], design["terms"], design["pairs"],
+                              1.0, prior, tie, so[0])
+            w = choose_shape_weight(probe, fit["theta"], p)
+            if w != design["weight"]:
+                again = VpProblem(p, modes, ig, design["functions"], design["terms"],
+                                  design["pairs"], w, prior, tie, so[0])
+                theta2, usable, conv, nfev = solve(again, fit["theta"], o["max_iterations"])
+                res["iterations"] += nfev
+                if usable:
+                    fit.update(problem=again, theta=theta2, converged=conv)
+                    design["weight"] = w
+            size_first = fit_size(first[0], first[1], True)
+            size_refit = fit_size(fit["problem"], fit["theta"], True)
+            if size_first is not None and size_refit is not None:
+                rows = fit["problem"].rd
+                (rss_f, dof_f), (rss_r, dof_r) = size_first, size_refit
+                variance = max(1.0, min(rss_f / max(1.0, rows - dof_f),
+                                        rss_r / max(1.0, rows - dof_r)))
+                price = math.log(rows) * variance
+                sane = lambda dof: np.isfinite(dof) and 0 <= dof < rows
+                omega = track.values(p["tau_s"]) @ fit["theta"][:2 * modes * m].reshape(
+                    modes, 2, m)[:, 1, :].T
+                crossing = any(np.ptp(np.sign(omega[:, j] - omega[:, k])) > 1
+                               for j in range(modes) for k in range(j + 1, modes))
+                take = (sane(dof_f) and sane(dof_r) and rss_r + price * dof_r < rss_f + price * dof_f
+                        and not crossing)
+        if take:
+            final, theta, converged = fit["problem"], fit["theta"], fit["converged"]
+            res["track_roughness"], res["shape_weight"] = refit_roughness, design["weight"]
+            res["shape_refit"] = True
+        else:
+            final, theta, converged = first
 
     # Final evaluation: linear solution and Jacobian for the posterior covariance.
     if not final.evaluate(theta):
@@ -793,6 +884,7 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
                        "track_roughness_from_data": OPTIONS["track_roughness"] < 0,
                        "decay_tie": fit["decay_tie"],
                        "decay_tie_from_data": OPTIONS["decay_tie"] < 0,
+                       "shape_refit": bool(fit["shape_refit"]),
                        "mapping": "state_space"},
            "residual_rms_whitened": fit["residual_rms_whitened"], "converged": bool(fit["converged"]),
            "noise_covariance_rad2": fit["noise_cov"].tolist(),
