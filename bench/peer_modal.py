@@ -29,8 +29,9 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     first-difference penalty whose weight GCV chooses over 1e-3 .. 1e6; the tie rows kept);
   - the shape refit (no tie; stage 1 rougher than the smoothest): stage 2's design from the
     smoothest fit, the roughness continuation in it below stage 1's choice, the weight
-    re-chosen by GCV, kept when its BIC (the shapes' effective dof from the trace of their
-    penalized smoother) is lower and its frequency tracks do not cross;
+    re-chosen by GCV, kept when its BIC with unknown variance, N ln RSS + ln(N) dof (the shapes'
+    effective dof from the trace of their penalized smoother), is lower and its frequency tracks
+    do not cross;
     posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including the mode-to-data power and
     separation checks (damped_modes.cpp);
   - eqs 45-46 and the state-space mapping to K(t), C(t), P(t) (modal_parameters.cpp), the
@@ -657,16 +658,15 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
             if size_first is not None and size_refit is not None:
                 rows = fit["problem"].rd
                 (rss_f, dof_f), (rss_r, dof_r) = size_first, size_refit
-                variance = max(1.0, min(rss_f / max(1.0, rows - dof_f),
-                                        rss_r / max(1.0, rows - dof_r)))
-                price = math.log(rows) * variance
                 sane = lambda dof: np.isfinite(dof) and 0 <= dof < rows
+                # BIC with the residual variance unknown: N ln RSS + ln(N) dof
+                bic = lambda rss, dof: rows * math.log(rss) + math.log(rows) * dof
                 omega = track.values(p["tau_s"]) @ fit["theta"][:2 * modes * m].reshape(
                     modes, 2, m)[:, 1, :].T
                 crossing = any(np.ptp(np.sign(omega[:, j] - omega[:, k])) > 1
                                for j in range(modes) for k in range(j + 1, modes))
-                take = (sane(dof_f) and sane(dof_r) and rss_r + price * dof_r < rss_f + price * dof_f
-                        and not crossing)
+                take = (sane(dof_f) and sane(dof_r) and rss_f > 0 and rss_r > 0
+                        and bic(rss_r, dof_r) < bic(rss_f, dof_f) and not crossing)
         if take:
             final, theta, converged = fit["problem"], fit["theta"], fit["converged"]
             res["track_roughness"], res["shape_weight"] = refit_roughness, design["weight"]

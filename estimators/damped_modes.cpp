@@ -353,7 +353,6 @@ class VpProblem {
 
   int residuals_count() const { return residuals(); }
   const std::vector<LinearTerm>& terms() const { return terms_; }
-  const DecayTie& tie() const { return tie_; }
   double shape_weight() const { return sqrt_weight_ * sqrt_weight_; }
 
  private:
@@ -1028,6 +1027,12 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   const double length_s = p.tau_s(n - 1);
   const bool shapes =
       options.shape_knot_spacing_s > 0.0 && c > 1 && length_s > options.shape_knot_spacing_s;
+  // GCV's shape weight for design `d` at the tracks `at`.
+  auto gcv_weight = [&](const Design& d, const Eigen::VectorXd& at, double roughness) {
+    const VpProblem probe(p, modes, integrals, d.functions, d.terms, d.pairs, 1.0,
+                          prior_rows(track, modes, roughness), tie, real, options.offsets, so_mode);
+    return choose_shape_weight(probe, at, p);
+  };
   auto shape_design = [&](const VpProblem& fitted, const Eigen::VectorXd& at, double roughness) {
     Eigen::VectorXd beta(fitted.linear());
     std::vector<double> scratch(fitted.residuals());
@@ -1050,14 +1055,22 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
           d.terms.push_back({j, basis.col(b), 1 + q});
         }
     }
-    d.weight = options.shape_weight;
-    if (d.weight < 0.0) {
-      const VpProblem probe(p, modes, integrals, d.functions, d.terms, d.pairs, 1.0,
-                            prior_rows(track, modes, roughness), fitted.tie(), real,
-                            options.offsets, fitted.second_order_mode());
-      d.weight = choose_shape_weight(probe, at, p);
-    }
+    d.weight = options.shape_weight >= 0.0 ? options.shape_weight : gcv_weight(d, at, roughness);
     return d;
+  };
+  // Fits design `d` at `roughness` from theta; when usable, takes it (theta, outcome, `into`).
+  auto fit_design = [&](const Design& d, double roughness, std::unique_ptr<VpProblem>& into) {
+    auto problem = std::make_unique<VpProblem>(p, modes, integrals, d.functions, d.terms, d.pairs,
+                                               d.weight, prior_rows(track, modes, roughness), tie,
+                                               real, options.offsets, so_mode);
+    Eigen::VectorXd candidate = theta;
+    const StageOutcome o = solve(*problem, candidate, options.max_iterations);
+    result.iterations += o.iterations;
+    if (!o.usable) return false;
+    theta = candidate;
+    outcome = o;
+    into = std::move(problem);
+    return true;
   };
   // The second-order terms are offered at the smoothest roughness, after the fit without them,
   // and kept only when they pay for their 3 C parameters by the same rule: on a record where the
@@ -1122,18 +1135,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // Stage 2: slowly varying mode shapes, at the chosen tracks.
   if (outcome.usable && shapes) {
     const Design d = shape_design(*final_problem, theta, result.track_roughness);
-    auto stage2 = std::make_unique<VpProblem>(
-        p, modes, integrals, d.functions, d.terms, d.pairs, d.weight,
-        prior_rows(track, modes, result.track_roughness), tie, real, options.offsets, so_mode);
-    Eigen::VectorXd theta2 = theta;
-    const StageOutcome outcome2 = solve(*stage2, theta2, options.max_iterations);
-    result.iterations += outcome2.iterations;
-    if (outcome2.usable) {
-      theta = theta2;
-      outcome = outcome2;
-      final_problem = std::move(stage2);
-      result.shape_weight = d.weight;
-    }
+    if (fit_design(d, result.track_roughness, final_problem)) result.shape_weight = d.weight;
   }
 
   // Shape refit. Stage 1's continuation runs with constant shapes, so mode shapes that change
@@ -1142,8 +1144,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // it chose tracks rougher than the smoothest, the other explanation is fitted too: the shape
   // stage from the smoothest fit, the roughness continuation (same rule) in it up to, not
   // including, stage 1's choice, the shape weight re-chosen by GCV at its tracks. It replaces
-  // the result when its BIC, RSS + ln(N) s^2 (effective parameters, the shapes' by the trace of
-  // their penalized smoother), is lower and its frequency tracks do not cross.
+  // the result when its BIC (effective parameters, the shapes' by the trace of their penalized
+  // smoother) is lower and its frequency tracks do not cross.
   if (options.shape_refit && outcome.usable && shapes && options.shape_weight < 0.0 &&
       grid.size() > 1 && tie.sd == 0.0 && smoothest.size() > 0) {
     const VpProblem base(p, modes, integrals, constant, terms, {}, 0.0,
@@ -1175,36 +1177,24 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       return false;
     };
     if (stage1) {
-      const VpProblem probe(p, modes, integrals, design.functions, design.terms, design.pairs, 1.0,
-                            prior_rows(track, modes, refit_roughness), tie, real, options.offsets,
-                            so_mode);
-      const double w = choose_shape_weight(probe, theta, p);
-      if (w != design.weight) {
-        auto again = std::make_unique<VpProblem>(
-            p, modes, integrals, design.functions, design.terms, design.pairs, w,
-            prior_rows(track, modes, refit_roughness), tie, real, options.offsets, so_mode);
-        Eigen::VectorXd theta2 = theta;
-        const StageOutcome o = solve(*again, theta2, options.max_iterations);
-        result.iterations += o.iterations;
-        if (o.usable) {
-          theta = theta2;
-          outcome = o;
-          stage1 = std::move(again);
-          design.weight = w;
-        }
-      }
+      Design again = design;
+      again.weight = gcv_weight(design, theta, refit_roughness);
+      if (again.weight != design.weight && fit_design(again, refit_roughness, stage1))
+        design.weight = again.weight;
       double rss_first = 0.0, dof_first = 0.0, rss_refit = 0.0, dof_refit = 0.0;
       if (fit_size(*first_problem, first_theta, true, rss_first, dof_first) &&
           fit_size(*stage1, theta, true, rss_refit, dof_refit)) {
+        // BIC with the residual variance unknown, N ln RSS + ln(N) dof: the two fits are not
+        // nested, and on noise-free data both residuals lie far below the whitened noise level
+        // (the arm's model error), where a variance floored at 1 would prefer the fit with fewer
+        // parameters however much worse it fits (movement trials, docs/tfa_modal.md).
         const double rows = stage1->data_rows();
-        const double variance =
-            std::max(1.0, std::min(rss_first / std::max(1.0, rows - dof_first),
-                                   rss_refit / std::max(1.0, rows - dof_refit)));
-        const double price = std::log(rows) * variance;
         auto sane = [&](double dof) { return std::isfinite(dof) && dof >= 0.0 && dof < rows; };
-        take_refit = sane(dof_first) && sane(dof_refit) &&
-                     rss_refit + price * dof_refit < rss_first + price * dof_first &&
-                     !crossing(theta);
+        auto bic = [&](double rss, double dof) {
+          return rows * std::log(rss) + std::log(rows) * dof;
+        };
+        take_refit = sane(dof_first) && sane(dof_refit) && rss_first > 0.0 && rss_refit > 0.0 &&
+                     bic(rss_refit, dof_refit) < bic(rss_first, dof_first) && !crossing(theta);
       }
     }
     if (take_refit) {
