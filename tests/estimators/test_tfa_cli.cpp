@@ -72,9 +72,14 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
     BOOST_CHECK_MESSAGE(j.contains(key), key);
   }
   for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "shape_weight",
-                          "real_terms", "real_terms_from_data", "offsets"}) {
+                          "real_terms", "real_terms_from_data", "offsets", "shape_refit"}) {
     BOOST_CHECK_MESSAGE(j["options"].contains(key), key);
   }
+  // The noise-free constant-K trial needs no rough tracks: the shape refit is not taken.
+  BOOST_CHECK(!j["options"]["shape_refit"].get<bool>());
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --no-shape-refit -o " +
+                        scratch("no_refit.json").string()),
+                    0);
   BOOST_CHECK(j["options"]["offsets"].get<bool>());
   BOOST_CHECK(j["options"]["second_order"].get<bool>());
   BOOST_CHECK(j["second_order_mode"].get<int>() >= 0);
