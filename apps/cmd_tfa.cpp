@@ -23,8 +23,9 @@
 //   "normalized_force": {"q"[j], "q_dot"[j], "sigma"[j], "envelope"[j], "envelope_force"[j]},
 //   "valid"[j] (per time: mode j's amplitude-to-noise ratio and frequency SD within limits; for
 //   the spectrogram method: the frame resolved, its frequency inside the ridge band and near its
-//   ridge), "anr_db"[j] (modal; null for the
-//   spectrogram), "K_valid" (per time: every mode valid and eta^2 > Gamma^2; modal).
+//   ridge, its amplitude-to-noise ratio at least 0 dB), "anr_db"[j] (both methods; null for the
+//   spectrogram when the trial holds no record before the onset), "K_valid" (per time: every
+//   mode valid and eta^2 > Gamma^2; modal).
 // For --method modal the spectrogram options are not used; "options" lists the modal ones and the
 // data-chosen weights, and f_ridge_hz / alpha_ridge_per_s repeat the fitted tracks.
 // --spectrogram writes CSV rows t_s,f_hz,channel,power,t_reassigned_s,f_reassigned_hz for the bins
@@ -336,7 +337,11 @@ void run(TfaCommandOptions cli) {
         ok[m] = r.status.ok && r.ridges.valid(m, j) && r.modal.separated(m);
       }
       valid.push_back(ok);
-      anr.push_back(std::vector<std::nullptr_t>(frames, nullptr));
+      if (r.ridges.anr_db.rows() == frames) {
+        anr.push_back(series(r.ridges.anr_db.col(j)));
+      } else {
+        anr.push_back(std::vector<std::nullptr_t>(frames, nullptr));
+      }
     }
   }
   out["valid"] = valid;
@@ -383,7 +388,8 @@ void add_tfa_command(CLI::App& app) {
                   "modal: knot spacing of the mode-shape splines, s (<= 0: constant shapes)")
       ->capture_default_str();
   sub->add_option("--noise-window-s", o.modes.noise_window_s,
-                  "modal: span before the onset whose deviations give the noise covariance, s")
+                  "span before the onset whose deviations give the noise covariance (modal: its "
+                  "whitening; spectrogram: the modes' amplitude-to-noise ratios), s")
       ->capture_default_str();
   sub->add_option("--track-roughness", o.modes.track_roughness,
                   "modal: prior SD of the second differences of the frequency (rad/s) and decay "

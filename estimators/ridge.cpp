@@ -579,6 +579,21 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
       }
     }
   }
+  if (options.noise_covariance.size() > 0) {  // a mode decayed into the noise is no estimate
+    if (options.noise_covariance.rows() != channels || options.noise_covariance.cols() != channels)
+      throw InputError("ridge tracking: the noise covariance must be " + std::to_string(channels) +
+                       " x " + std::to_string(channels));
+    const Eigen::LLT<Eigen::MatrixXcd> llt(options.noise_covariance.cast<cd>() +
+                                           1e-300 * Eigen::MatrixXcd::Identity(channels, channels));
+    r.anr_db.resize(frames, n);
+    for (int j = 0; j < n; ++j)
+      for (int m = 0; m < frames; ++m) {
+        const Eigen::VectorXcd a = r.amplitude_c[j].row(m).transpose();
+        const double power = 0.5 * a.dot(llt.solve(a)).real();
+        r.anr_db(m, j) = 10.0 * std::log10(power);
+        if (!(r.anr_db(m, j) >= options.anr_threshold_db)) r.valid(m, j) = false;
+      }
+  }
   const int outlier_half_window =
       std::max(1, static_cast<int>(std::lround(0.5 * options.outlier_window_s / sg.hop_s)));
   flag_outliers(r, outlier_half_window, options.outlier_hz);

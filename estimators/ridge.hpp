@@ -29,6 +29,10 @@ struct RidgeOptions {
   double outlier_window_s = 0.1;       ///< validity: a fit is compared with the median of its
   double outlier_hz = 0.25;            ///< mode's valid fits within this window, s, and is
                                        ///< invalid when further than outlier_hz from it, Hz
+  Eigen::MatrixXd noise_covariance{};  ///< (C x C) noise covariance of the analysed channels,
+                                       ///< channel units^2 (e.g. from before the onset); empty:
+                                       ///< no amplitude-to-noise ratio, no such validity test
+  double anr_threshold_db = 0.0;       ///< validity: amplitude-to-noise ratio at least this, dB
 };
 
 /// Per-frame description of the modes. With lambda_j = alpha_j + i omega_j, the part of channel k
@@ -43,9 +47,16 @@ struct RidgeResult {
   std::vector<Eigen::MatrixXd> amplitude;     ///< [n] of (T x C) A_jk, channel units (rad)
   std::vector<Eigen::MatrixXd> phase_rad;     ///< [n] of (T x C) phase of mode j in channel k
   std::vector<Eigen::MatrixXcd> amplitude_c;  ///< [n] of (T x C) complex amplitudes
+  /// (T x n) amplitude-to-noise ratio of mode j at frame t, dB: 10 log10(a^H S^-1 a / 2), a the
+  /// mode's complex amplitudes in the channels and S the noise covariance (the mode's mean power
+  /// per sample over the noise, in whitened units, as the modal method's anr_db); empty without
+  /// RidgeOptions::noise_covariance.
+  Eigen::MatrixXd anr_db;
   /// (T x n) mode j resolved at frame t: the frame fit converged, its frequency lies inside the
   /// ridge band (a fit that wanders off, e.g. onto a slow real pole at 0 Hz, is not a mode of the
-  /// band), no other mode's fit is within min_mode_separation of it (two fits on one mode) and it
+  /// band), no other mode's fit is within min_mode_separation of it (two fits on one mode), its
+  /// amplitude-to-noise ratio (when the noise is known) is at least anr_threshold_db (a mode
+  /// that has decayed into the noise) and it
   /// is within outlier_hz of the median of the mode's valid fits around it. The values of an
   /// invalid frame are bridged from the valid frames around it (omega, alpha and ln A linear,
   /// the phase along the integral of omega; continued from the nearest valid frame at the ends)

@@ -44,6 +44,34 @@ std::vector<Eigen::MatrixXd> inertia_at(const DeviationResult& dev,
   return inertia;
 }
 
+// Noise covariance of the analysed channels for the spectrogram method's amplitude-to-noise
+// ratios: the deviations over up to window_s before the onset (as far as the trial and the
+// baseline reach, less 0.05 s), decimated like the analysed signal, the filter's reach at both
+// ends left out. Empty when fewer than 8 samples per channel remain (no such test then).
+Eigen::MatrixXd pre_onset_noise(const data::Trial& trial, const TfaOptions& options,
+                                const data::Trial* baseline, const DecimationOptions& decimation,
+                                double window_s) {
+  DeviationOptions lead = options.deviation;
+  lead.analytic = false;
+  lead.lead_s = std::max(lead.lead_s, window_s + 0.05);
+  const DeviationResult before = joint_deviation(trial, lead, baseline);
+  const double fs = before.sample_rate_hz;
+  const int c = static_cast<int>(before.deviation_rad.cols());
+  const int onset = static_cast<int>(std::ceil((before.onset_s - before.start_time_s) * fs - 1e-9));
+  const int used = std::min(onset - static_cast<int>(std::lround(0.05 * fs)),
+                            static_cast<int>(std::lround(window_s * fs)));
+  const int d = decimation.factor;
+  const int h = d > 1 ? decimation.half_taps_per_factor * d : 0;
+  if (used <= 2 * h) return {};
+  const DecimationResult x =
+      decimate(before.deviation_rad.middleRows(onset - used, used), fs, decimation);
+  const int first = (h + d - 1) / d, last = (used - 1 - h) / d;
+  if (last - first + 1 < 8 * c) return {};
+  Eigen::MatrixXd noise = x.samples.middleRows(first, last - first + 1);
+  noise.rowwise() -= noise.colwise().mean();
+  return noise.transpose() * noise / double(noise.rows() - 1);
+}
+
 #ifndef STIFFID_TFA_SPECTROGRAM_ONLY
 // Stages 2-5 of the modal method: the fit, K and C by the inverse eigenproblem, and the same
 // per-time quantities as the spectrogram pipeline's modal analysis (omega, alpha and their
@@ -207,6 +235,10 @@ TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
   }
   RidgeOptions ridge_options = options.ridges;
   ridge_options.modes = static_cast<int>(options.deviation.angle_channels.size());
+  if (ridge_options.noise_covariance.size() == 0) {
+    ridge_options.noise_covariance =
+        pre_onset_noise(trial, options, baseline, dec_options, options.modes.noise_window_s);
+  }
   r.ridges = track_ridges(r.spectrogram, ridge_options);
 
   // Frame centres are whole input samples (centre * D), so the posture row is exact.

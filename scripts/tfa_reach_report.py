@@ -445,8 +445,7 @@ def part_a(stiffid, seeds, work, arm, lines):
                                                              " (%d failed)" % failed if failed else "",
                                                              snr, " | ".join(cells), paper))
     lines += ["", "Per trial: E_sigma1, E_sigma2 (%); f = mean fitted frequencies over 2.6-3.175 s; "
-              "valid = % of frames 2.6-4.5 s each mode is flagged valid (spectrogram: 100 when every "
-              "frame resolved).", "",
+              "valid = % of frames 2.6-4.5 s each mode is flagged valid.", "",
               "| model | task | method | SNR | seed | visc 2.6-4.5 s1 | s2 | visc 2.6-3.175 s1 | s2 | "
               "eff 2.6-4.5 s1 | s2 | eff 2.6-3.175 s1 | s2 | f (Hz) | valid % | note |",
               "|" + "---|" * 16] + rows + [""]

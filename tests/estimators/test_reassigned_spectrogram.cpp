@@ -62,6 +62,37 @@ BOOST_AUTO_TEST_CASE(single_decaying_cosine_gives_exact_frequency_decay_and_ampl
   BOOST_CHECK_LT(worst_amp, 1e-3);
 }
 
+BOOST_AUTO_TEST_CASE(a_mode_below_the_noise_is_flagged_by_its_amplitude_to_noise_ratio) {
+  // The cosine of the first test with a noise variance given to the ridge stage: the ratio is
+  // the mode's mean power per sample over the noise, a(t)^2 / (2 sigma^2), exactly known; sigma
+  // is chosen so that it crosses 0 dB at t = 2 s. Frames after that are invalid, and bridged
+  // (exactly, for a mode with constant parameters).
+  const double f = 6.0, alpha = -1.5, a0 = 0.02, phi = 0.4, crossing_s = 2.0;
+  const est::TfSignal s = damped_cosines(1000.0, 4.0, {f}, {alpha}, {a0}, {phi});
+  const est::ReassignedSpectrogram sg = paper_window_spectrogram(s);
+  est::RidgeOptions ro;
+  ro.modes = 1;
+  const double amplitude_at_crossing = a0 * std::exp(alpha * crossing_s);
+  ro.noise_covariance = Eigen::MatrixXd::Constant(1, 1, 0.5 * std::pow(amplitude_at_crossing, 2));
+  const est::RidgeResult r = est::track_ridges(sg, ro);
+  BOOST_REQUIRE(r.status.ok);
+  BOOST_REQUIRE_EQUAL(r.anr_db.rows(), sg.frames());
+  int flagged = 0;
+  for (int m = 0; m < sg.frames(); ++m) {
+    const double t = r.time_s(m);
+    const double expected_db = 20.0 * std::log10(std::exp(alpha * (t - crossing_s)));
+    BOOST_CHECK_SMALL(r.anr_db(m, 0) - expected_db, 1e-3);
+    if (std::abs(t - crossing_s) > 0.011) BOOST_CHECK_EQUAL(r.valid(m, 0), t < crossing_s);
+    flagged += r.valid(m, 0) ? 0 : 1;
+    BOOST_CHECK_SMALL(r.frequency_hz(m, 0) / f - 1.0, 1e-3);  // the bridge of the flagged frames
+  }
+  BOOST_CHECK_GT(flagged, 0);
+  // Without a noise covariance there is no ratio and no such test.
+  const est::RidgeResult without = est::track_ridges(sg, {.modes = 1});
+  BOOST_CHECK_EQUAL(without.anr_db.size(), 0);
+  BOOST_CHECK(without.valid.all());
+}
+
 BOOST_AUTO_TEST_CASE(decaying_cosine_in_a_cut_region_is_exact_up_to_the_cut) {
   // Same cosine, analysed only in [0.5, 3.5) s: frames near the cut use windows cut at the region
   // ends (with the edge steps), and stay exact (round-off, 1e-9).
