@@ -49,6 +49,10 @@ BOOST_AUTO_TEST_CASE(writes_the_documented_keys_with_auto_onset) {
   BOOST_CHECK_EQUAL(j["f_hz"].size(), 2u);
   BOOST_CHECK_EQUAL(j["amplitude"][1][0].size(), frames);
   BOOST_CHECK_EQUAL(j["K_nm_per_rad"][0][1].size(), frames);
+  // The fixture holds 0.5 s before the onset: each mode's amplitude-to-noise ratio is reported.
+  BOOST_REQUIRE_EQUAL(j["anr_db"].size(), 2u);
+  BOOST_CHECK_EQUAL(j["anr_db"][1].size(), frames);
+  BOOST_CHECK(j["anr_db"][1][frames / 2].is_number());
   BOOST_CHECK_CLOSE(j["onset_s"].get<double>(), 2.5, 1e-6);
   // Constant K0 = [35 5; 5 20] N m/rad (eq 52): mid-record k11 within 1 % (test_tfa_posture
   // measures 0.03 % RMS over 2.6-4.5 s).
