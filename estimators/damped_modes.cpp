@@ -523,16 +523,24 @@ Eigen::MatrixXd prior_rows(const UniformCubicBspline& track, int modes, double r
   return rows;
 }
 
+// The linear parameters' design at theta: data rows `a` and shape-penalty rows `r` (without the
+// weight). False when the model cannot be evaluated there.
+bool linear_design(const VpProblem& problem, const Eigen::VectorXd& theta, Eigen::MatrixXd& a,
+                   Eigen::MatrixXd& r) {
+  Eigen::MatrixXcd e;
+  Eigen::MatrixXd er;
+  if (!problem.oscillations(theta.data(), e) || !problem.real_exponentials(theta.data(), er))
+    return false;
+  problem.design(e, er, a, r);
+  return true;
+}
+
 // Generalized cross-validation of the shape penalty at fixed tracks (Golub, Heath & Wahba 1979):
 // GCV(lambda) = N ||r||^2 / (N - tr H)^2 over a log grid 1e-3 .. 1e6.
 double choose_shape_weight(const VpProblem& problem, const Eigen::VectorXd& theta,
                            const Prepared& p) {
-  Eigen::MatrixXcd e;
-  Eigen::MatrixXd er;
-  if (!problem.oscillations(theta.data(), e) || !problem.real_exponentials(theta.data(), er))
-    return 1.0;
   Eigen::MatrixXd a, r;
-  problem.design(e, er, a, r);
+  if (!linear_design(problem, theta, a, r)) return 1.0;
   const Eigen::MatrixXd ata = a.transpose() * a;
   const Eigen::MatrixXd rtr = r.transpose() * r;
   const Eigen::VectorXd atb = a.transpose() * p.yw;
@@ -556,12 +564,8 @@ double choose_shape_weight(const VpProblem& problem, const Eigen::VectorXd& thet
 // Effective number of linear parameters at theta: their count, or with a shape penalty the trace
 // of its linear smoother, tr((A^T A + w R^T R)^+ A^T A) (A data rows, R penalty rows).
 double linear_effective_parameters(const VpProblem& problem, const Eigen::VectorXd& theta) {
-  if (problem.penalty_rows() == 0) return problem.linear();
-  Eigen::MatrixXcd e;
-  Eigen::MatrixXd er, a, r;
-  if (!problem.oscillations(theta.data(), e) || !problem.real_exponentials(theta.data(), er))
-    return problem.linear();
-  problem.design(e, er, a, r);
+  Eigen::MatrixXd a, r;
+  if (problem.penalty_rows() == 0 || !linear_design(problem, theta, a, r)) return problem.linear();
   Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(a.cols(), a.cols());
   ata.selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
   ata.triangularView<Eigen::StrictlyUpper>() = ata.transpose();
@@ -663,13 +667,19 @@ Eigen::MatrixXd posterior_covariance(const VpProblem& problem, const Eigen::Vect
 }
 
 // Both designs' last step: the validity checks the residual cannot make, then the modes in
-// ascending mean frequency.
-void finish_modes(const Prepared& p, const DampedModesOptions& options,
-                  std::vector<ModeTrack>& modes) {
+// ascending mean frequency. Returns the order: position i holds the fit's mode order[i].
+std::vector<int> finish_modes(const Prepared& p, const DampedModesOptions& options,
+                              std::vector<ModeTrack>& modes) {
   flag_degenerate_modes(p, options, modes);
-  std::stable_sort(modes.begin(), modes.end(), [](const auto& a, const auto& b) {
-    return a.omega_rad_per_s.mean() < b.omega_rad_per_s.mean();
+  std::vector<int> order(modes.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return modes[a].omega_rad_per_s.mean() < modes[b].omega_rad_per_s.mean();
   });
+  std::vector<ModeTrack> sorted;
+  for (const int j : order) sorted.push_back(std::move(modes[j]));
+  modes = std::move(sorted);
+  return order;
 }
 
 // Rows [first, first + count) of a prepared record, times from its first row.
@@ -1317,7 +1327,6 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     result.fitted.rowwise() += result.offset_rad.transpose();
   }
   result.second_order_mode = -1;
-  double so_mean = 0.0;
   if (fp.second_order_mode() >= 0) {  // the distortion's part of the model, in channel units
     const int j = fp.second_order_mode();
     Eigen::MatrixXd whitened(n, c);
@@ -1330,12 +1339,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       }
     }
     result.fitted += whitened * p.cholesky.transpose();
-    so_mean = result.modes[j].omega_rad_per_s.mean();
   }
-  finish_modes(p, options, result.modes);  // sorts the modes by mean frequency
-  for (std::size_t j = 0; j < result.modes.size() && fp.second_order_mode() >= 0; ++j)
-    if (result.modes[j].omega_rad_per_s.mean() == so_mean)
-      result.second_order_mode = static_cast<int>(j);
+  const std::vector<int> order = finish_modes(p, options, result.modes);
+  for (std::size_t i = 0; i < order.size(); ++i)
+    if (order[i] == fp.second_order_mode()) result.second_order_mode = static_cast<int>(i);
   return result;
 }
 
