@@ -24,19 +24,29 @@ struct Case {
   est::TfaResult tfa;
 };
 
-Case run(m::ProfileKind profile, double direction_deg, double snr_db, unsigned seed) {
-  m::TrialSpec spec = m::piovesan_impulse_trial(m::TaskKind::posture, profile,
-                                                m::ProfileKind::constant,
-                                                direction_deg * M_PI / 180.0);
+// Default options (the modal method) for the simulator's trials: angles th1, th2, onset 2.5 s.
+est::TfaOptions default_options() {
+  est::TfaOptions o;
+  o.deviation.angle_channels = {"th1", "th2"};
+  o.deviation.onset_s = 2.5;
+  return o;
+}
+
+// Simulates `spec` at snr_db with noise seed `seed` and identifies it with `options`.
+Case run_spec(m::TrialSpec spec, double snr_db, unsigned seed,
+              const est::TfaOptions& options = default_options()) {
   spec.noise.snr_db = snr_db;
   std::mt19937_64 rng(seed);
   Case c{m::simulate(spec, rng), {}};
   BOOST_REQUIRE(c.sim.status.ok);
-  est::TfaOptions o;  // default: the modal method
-  o.deviation.angle_channels = {"th1", "th2"};
-  o.deviation.onset_s = 2.5;
-  c.tfa = est::identify_tfa(c.sim.trial, o);
+  c.tfa = est::identify_tfa(c.sim.trial, options);
   return c;
+}
+
+Case run(m::ProfileKind profile, double direction_deg, double snr_db, unsigned seed) {
+  return run_spec(m::piovesan_impulse_trial(m::TaskKind::posture, profile, m::ProfileKind::constant,
+                                            direction_deg * M_PI / 180.0),
+                  snr_db, seed);
 }
 
 // 100 RMS(est - true) / RMS(true) of coefficient (row, col) of K (or C) over [t0, t1] s.
@@ -181,14 +191,7 @@ BOOST_AUTO_TEST_CASE(a_rotating_stiffness_ellipse_is_followed_by_the_mode_shapes
     m::TrialSpec spec = m::read_trial_spec(specs + "piovesan_posture_rotating.json");
     spec.perturbations.pulses.at(0).random_octant = false;
     spec.perturbations.pulses.at(0).direction_rad = direction * M_PI / 180.0;
-    spec.noise.snr_db = 20.0;
-    std::mt19937_64 rng(1);
-    Case c{m::simulate(spec, rng), {}};
-    BOOST_REQUIRE(c.sim.status.ok);
-    est::TfaOptions o;
-    o.deviation.angle_channels = {"th1", "th2"};
-    o.deviation.onset_s = 2.5;
-    c.tfa = est::identify_tfa(c.sim.trial, o);
+    Case c = run_spec(spec, 20.0, 1);
     BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
     BOOST_TEST_MESSAGE("rotating, " << direction << " deg (roughness "
                                     << c.tfa.modes.track_roughness << ", shape weight "
@@ -199,6 +202,7 @@ BOOST_AUTO_TEST_CASE(a_rotating_stiffness_ellipse_is_followed_by_the_mode_shapes
     BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 25.0);
     BOOST_CHECK_GE(k_valid_share(c, 2.6, 4.5), 0.9);
     Case without = c;
+    est::TfaOptions o = default_options();
     o.modes.shape_refit = false;
     without.tfa = est::identify_tfa(c.sim.trial, o);
     BOOST_REQUIRE_MESSAGE(without.tfa.status.ok, without.tfa.status.message);
@@ -224,9 +228,7 @@ BOOST_AUTO_TEST_CASE(poynting_thomson_posture_trial_is_fitted_with_a_real_term) 
   std::mt19937_64 rng(1);
   const m::SimulationResult sim = m::simulate(spec, rng);
   BOOST_REQUIRE(sim.status.ok);
-  est::TfaOptions o;
-  o.deviation.angle_channels = {"th1", "th2"};
-  o.deviation.onset_s = 2.5;
+  const est::TfaOptions o = default_options();
   const est::TfaResult r = est::identify_tfa(sim.trial, o);
   BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
   BOOST_REQUIRE_EQUAL(r.modes.real_terms.size(), 1u);
