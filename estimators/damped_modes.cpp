@@ -12,9 +12,10 @@
 #include <numeric>
 #include <string>
 
-#include "estimators/cubic_bspline.hpp"
 #include "data/parallel.hpp"
+#include "estimators/cubic_bspline.hpp"
 #include "estimators/decimate.hpp"
+#include "estimators/effective_parameters.hpp"
 
 namespace stiffid::estimators {
 namespace {
@@ -551,7 +552,7 @@ double choose_shape_weight(const VpProblem& problem, const Eigen::VectorXd& thet
     const Eigen::MatrixXd normal = ata + lambda * rtr;
     const Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod(normal);
     const Eigen::VectorXd beta = cod.solve(atb);
-    const double trace = cod.solve(ata).trace();
+    const double trace = effective_parameters(ata, lambda * rtr);
     const double score = rows * (p.yw - a * beta).squaredNorm() / std::pow(rows - trace, 2);
     if (score < best_score) {
       best_score = score;
@@ -568,9 +569,7 @@ double linear_effective_parameters(const VpProblem& problem, const Eigen::Vector
   if (problem.penalty_rows() == 0 || !linear_design(problem, theta, a, r)) return problem.linear();
   Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(a.cols(), a.cols());
   ata.selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
-  ata.triangularView<Eigen::StrictlyUpper>() = ata.transpose();
-  const Eigen::MatrixXd normal = ata + problem.shape_weight() * (r.transpose() * r);
-  return Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(normal).solve(ata).trace();
+  return effective_parameters(ata, problem.shape_weight() * (r.transpose() * r));
 }
 
 // Size of a converged fit: the whitened residual sum of squares of the data rows and, when asked,
@@ -589,16 +588,14 @@ bool fit_size(const VpProblem& problem, const Eigen::VectorXd& theta, bool with_
   rss = residual.head(problem.data_rows()).squaredNorm();
   dof = 0.0;
   if (with_dof) {
-    // tr(N^-1 Jd^T Jd) with N = Jd^T Jd + Jp^T Jp (data and prior rows) is P - tr(N^-1 Jp^T Jp):
-    // one product of the tall data rows, symmetric, instead of two.
+    // tr(N^+ Jd^T Jd) with N = Jd^T Jd + Jp^T Jp (data and prior rows); the tall data rows'
+    // product symmetric (lower triangle only).
     const int np = problem.parameters();
     const auto jd = jacobian.topRows(problem.data_rows());
     const auto jp = jacobian.bottomRows(problem.residuals() - problem.data_rows());
-    const Eigen::MatrixXd prior = jp.transpose() * jp;
-    Eigen::MatrixXd normal = prior;
-    normal.selfadjointView<Eigen::Lower>().rankUpdate(jd.transpose());
-    normal.triangularView<Eigen::StrictlyUpper>() = normal.transpose();
-    dof = np - Eigen::LDLT<Eigen::MatrixXd>(normal).solve(prior).trace() +
+    Eigen::MatrixXd data = Eigen::MatrixXd::Zero(np, np);
+    data.selfadjointView<Eigen::Lower>().rankUpdate(jd.transpose());
+    dof = effective_parameters(data, jp.transpose() * jp) +
           linear_effective_parameters(problem, theta);
   }
   return true;
