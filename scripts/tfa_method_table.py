@@ -3,6 +3,7 @@
 
   scripts/tfa_method_table.py [--stiffid build/stiffid] [--seed 1 | --seeds 1,2,3] [--snr 20,inf]
                               [--directions 0,45,90,135] [--profiles constant,sigmoid,sharp]
+                              [--methods modal,spectrogram]
                               [--specs [NAME=]SPEC.json,...] [--summary] [-o TABLE.md]
                               [--intervals 2.6-3.175,2.6-4.5]
 
@@ -116,6 +117,7 @@ def main():
     p.add_argument("--snr", default="20,inf")
     p.add_argument("--directions", default="0,45,90,135")
     p.add_argument("--profiles", default="constant,sigmoid,sharp")
+    p.add_argument("--methods", default="modal,spectrogram", help="tfa methods to run")
     p.add_argument("--specs", default="", help="[NAME=]SPEC.json,... instead of --profiles")
     p.add_argument("--summary", action="store_true", help="add the means over directions and seeds")
     p.add_argument("--targets", default="10,10,25",
@@ -159,7 +161,7 @@ def main():
                             sys.exit("simulate failed: " + failure)
                         truth_json = json.load(open(truth))
                         snr_text = "none" if snr == "inf" else snr + " dB"
-                        for method in ("modal", "spectrogram"):
+                        for method in a.methods.split(","):
                             out = os.path.join(work, "tfa.json")
                             failure = run([a.stiffid, "tfa", trial, "--angles", "th1,th2", "--onset",
                                            "2.5", "--method", method, "-o", out])
