@@ -155,6 +155,7 @@ struct FrameFit {
   std::vector<SampledWindow::Transform> transforms;
   int transforms_lo = 0, transforms_hi = -1;
   std::vector<int> transforms_bins;
+  bool degenerate = false;  ///< not n distinct modes (degenerate_fit)
 };
 
 /// Least-squares complex amplitudes for given lambdas on `bins` (X_h only).
@@ -397,6 +398,40 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
   return std::isfinite(cost);
 }
 
+/// A converged fit that does not describe n distinct modes (the frame is invalid for every mode,
+/// and a chain started from it would stay in it):
+/// - its frequencies are out of the ridges' order (the ridges never cross, nor do the modes of the
+///   free response: a mode's fit has jumped onto or past another mode's), or
+/// - some mode's own part of X_h at the fit bins, in all channels, has more than
+///   max_mode_to_data_db above the energy of X_h there. Each mode of a sum of damped oscillations
+///   has about the energy of the sum at most, plus the noise's and what two modes within one main
+///   lobe take from each other (up to 4 dB in the simulator's sigmoid trials), unless others cancel
+///   it: fits with two tracks on one mode and large opposite amplitudes do this.
+/// Uses the window transforms gauss_newton left in the fit (its final lambdas).
+bool degenerate_fit(const FrameContext& ctx, int m, const FrameFit& fit) {
+  const int n = ctx.n, images = ctx.real_signal ? 2 : 1;
+  for (int j = 0; j + 1 < n; ++j) {
+    if (!(fit.lambda[j].imag() < fit.lambda[j + 1].imag())) return true;
+  }
+  const auto nb = static_cast<int>(fit.transforms_bins.size());
+  if (static_cast<int>(fit.transforms.size()) != nb * n * images) return false;
+  double data = 0.0;
+  std::vector<double> own(n, 0.0);
+  for (int i = 0; i < nb; ++i) {
+    const SampledWindow::Transform* t = &fit.transforms[i * n * images];
+    for (int c = 0; c < ctx.channels; ++c) {
+      data += std::norm(ctx.sg.stft[c](fit.transforms_bins[i], m));
+      for (int j = 0; j < n; ++j) {
+        cd part = fit.coef(j, c) * t[j * images].w;
+        if (images == 2) part += std::conj(fit.coef(j, c)) * t[j * images + 1].w;
+        own[j] += std::norm(part);
+      }
+    }
+  }
+  const double ratio = std::pow(10.0, ctx.options.max_mode_to_data_db / 10.0);
+  return std::any_of(own.begin(), own.end(), [&](double e) { return e > ratio * data; });
+}
+
 /// Frames whose fitted frequency lies more than outlier_hz from the median of the mode's other
 /// valid fits within +-half_window frames: invalid (a fit that jumped, e.g. onto the other mode,
 /// while its neighbours did not).
@@ -431,6 +466,13 @@ void bridge_invalid_frames(RidgeResult& r) {
     std::vector<int> good;
     for (int m = 0; m < frames; ++m) {
       if (r.valid(m, j)) good.push_back(m);
+    }
+    if (good.empty()) {  // no valid frame: only the unresolved ones, from the resolved ones
+      for (int m = 0; m < frames; ++m) {
+        if (std::isfinite(r.omega_rad_per_s(m, j)) && std::isfinite(r.decay_rate_per_s(m, j)) &&
+            r.amplitude_c[j].row(m).allFinite())
+          good.push_back(m);
+      }
     }
     if (good.empty() || static_cast<int>(good.size()) == frames) continue;
     auto set = [&](int m, double omega, double alpha, const Eigen::VectorXcd& a) {
@@ -518,12 +560,16 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
 
   FrameContext ctx{sg, options, n, channels, !sg.analytic};
   std::vector<FrameFit> fits(frames);
+  // A frame starts from its neighbour's solution moved by one hop, or from the ridge's own
+  // starting values when there is none or it fails. A degenerate fit is kept, and flagged: started
+  // afresh from the ridge it lands elsewhere, and the chain that follows it does too (measured on
+  // the simulator's posture trials: it rescued some runs and broke others; docs/tfa.md).
   auto fit_frame = [&](int m, const FrameFit* warm, double shift_s) {
     std::vector<int> ridge(n);
     for (int j = 0; j < n; ++j) ridge[j] = r.bin(m, j);
     FrameFit fit;
     bool ok = false;
-    if (warm != nullptr && warm->ok) {  // previous frame moved by one hop
+    if (warm != nullptr && warm->ok) {
       fit = *warm;
       for (int j = 0; j < n; ++j) fit.coef.row(j) *= std::exp(fit.lambda[j] * shift_s);
       ok = gauss_newton(ctx, m, ridge, fit);
@@ -533,12 +579,28 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
       ok = fit.ok && gauss_newton(ctx, m, ridge, fit);
     }
     fit.ok = ok;
+    fit.degenerate = ok && degenerate_fit(ctx, m, fit);
     return fit;
   };
-  // Start mid-record (full windows, best conditioned), then follow the modes both ways, each frame
-  // starting from its neighbour's solution: two independent chains, run in parallel.
-  const int mid = frames / 2;
+  // Start mid-record (full windows, best conditioned) at the frame nearest the middle (later
+  // first) whose fit is not degenerate, then follow the modes both ways, each frame starting from
+  // its neighbour's solution: two independent chains, run in parallel. A chain started from a
+  // degenerate fit would carry it along (the constant-K trial at 45 degrees, 20 dB, seed 6: two
+  // tracks on the slow mode from the middle frame on, k11 off by 122 %).
+  int mid = frames / 2;
   fits[mid] = fit_frame(mid, nullptr, 0.0);
+  for (int d = 1; !(fits[mid].ok && !fits[mid].degenerate) && d < frames; ++d) {
+    for (int m : {frames / 2 + d, frames / 2 - d}) {
+      if (m < 0 || m >= frames) continue;
+      FrameFit fit = fit_frame(m, nullptr, 0.0);
+      if (fit.ok && !fit.degenerate) {
+        fits[mid] = FrameFit{};
+        mid = m;
+        fits[mid] = std::move(fit);
+        break;
+      }
+    }
+  }
   data::parallel_for_index(2, [&](std::size_t chain) {
     if (chain == 0) {
       for (int m = mid + 1; m < frames; ++m) fits[m] = fit_frame(m, &fits[m - 1], sg.hop_s);
@@ -557,7 +619,7 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
       r.omega_rad_per_s(m, j) = fit.ok ? fit.lambda[j].imag() : nan;
       r.frequency_hz(m, j) = r.omega_rad_per_s(m, j) / (2.0 * M_PI);
       const double f = r.frequency_hz(m, j);
-      r.valid(m, j) = fit.ok && std::isfinite(fit.lambda[j].real()) &&
+      r.valid(m, j) = fit.ok && !fit.degenerate && std::isfinite(fit.lambda[j].real()) &&
                       f >= options.min_frequency_hz && f <= options.max_frequency_hz;
       r.decay_rate_per_s(m, j) = fit.ok ? fit.lambda[j].real() : nan;
       for (int c = 0; c < channels; ++c) {
@@ -597,12 +659,15 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
   const int outlier_half_window =
       std::max(1, static_cast<int>(std::lround(0.5 * options.outlier_window_s / sg.hop_s)));
   flag_outliers(r, outlier_half_window, options.outlier_hz);
-  if (failed_frames == 0) bridge_invalid_frames(r);
-  if (failed_frames > 0) {
+  // A frame whose fit failed is invalid like any other and bridged; the record fails only when
+  // a mode has no valid frame to bridge from while some frame has no values.
+  bridge_invalid_frames(r);
+  const bool unresolved = !r.omega_rad_per_s.allFinite() || !r.decay_rate_per_s.allFinite();
+  if (unresolved) {
     r.status = Status::failure("ridge tracking: " + std::to_string(failed_frames) + " of " +
                                std::to_string(frames) +
                                " frames could not be resolved (no energy at a ridge or a singular "
-                               "amplitude fit)");
+                               "amplitude fit) and a mode has no valid frame to bridge them from");
   }
   return r;
 }

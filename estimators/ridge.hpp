@@ -33,6 +33,10 @@ struct RidgeOptions {
                                        ///< channel units^2 (e.g. from before the onset); empty:
                                        ///< no amplitude-to-noise ratio, no such validity test
   double anr_threshold_db = 0.0;       ///< validity: amplitude-to-noise ratio at least this, dB
+  double max_mode_to_data_db = 6.0;    ///< validity: a mode's own part of the frame's STFT at the
+                                       ///< fit bins at most this far above the STFT's energy
+                                       ///< there, dB (more: modes cancelling each other; two
+                                       ///< modes in one main lobe reach 4 dB legitimately)
 };
 
 /// Per-frame description of the modes. With lambda_j = alpha_j + i omega_j, the part of channel k
@@ -56,13 +60,16 @@ struct RidgeResult {
   /// ridge band (a fit that wanders off, e.g. onto a slow real pole at 0 Hz, is not a mode of the
   /// band), no other mode's fit is within min_mode_separation of it (two fits on one mode), its
   /// amplitude-to-noise ratio (when the noise is known) is at least anr_threshold_db (a mode
-  /// that has decayed into the noise) and it
+  /// that has decayed into the noise), the frame's fits keep the ridges' order (a fit that jumped
+  /// onto or past another mode) and no mode's own part of the frame's STFT at the fit bins
+  /// exceeds the STFT's energy there by more than max_mode_to_data_db (modes with large,
+  /// cancelling amplitudes; these two make the frame invalid for every mode) and it
   /// is within outlier_hz of the median of the mode's valid fits around it. The values of an
-  /// invalid frame are bridged from the valid frames around it (omega, alpha and ln A linear,
-  /// the phase along the integral of omega; continued from the nearest valid frame at the ends)
-  /// when every frame resolved, so that stage 4's smoothing does not spread a bad fit.
+  /// invalid frame, and of a frame whose fit failed, are bridged from the valid frames around it
+  /// (omega, alpha and ln A linear, the phase along the integral of omega; continued from the
+  /// nearest valid frame at the ends), so that stage 4's smoothing does not spread a bad fit.
   Eigen::Array<bool, Eigen::Dynamic, Eigen::Dynamic> valid;
-  Status status;                     ///< failure when a frame could not be resolved
+  Status status;  ///< failure when a frame's fit failed and its mode has no valid frame to bridge
 };
 
 /// Joint DP over the n ridges b_1 < ... < b_n (modes never cross) maximising
@@ -81,8 +88,9 @@ RidgeResult track_ridges(const ReassignedSpectrogram& spectrogram, const RidgeOp
 /// its valid frames: between two valid frames, omega, alpha and ln A_jk are interpolated linearly
 /// in time and the phase follows the integral of omega (its 2 pi branch matched at both ends);
 /// before the first or after the last valid frame the nearest valid frame's mode is continued
-/// (a exp(lambda dt)). The frames stay invalid. A mode without a valid frame is left as it is.
-/// track_ridges calls it when every frame resolved.
+/// (a exp(lambda dt)). The frames stay invalid. A mode without a valid frame keeps its values
+/// where its fits resolved; only the frames whose fit failed are bridged, from those.
+/// track_ridges calls it.
 void bridge_invalid_frames(RidgeResult& ridges);
 
 }  // namespace stiffid::estimators
