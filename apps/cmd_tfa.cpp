@@ -426,8 +426,9 @@ void add_tfa_command(CLI::App& app) {
                   "the mean over 0.2 s before the onset");
   sub->add_option("--subject", cli->subject_path,
                   "JSON object of arm parameters (l1_m, r1_m, m1_kg, iz1_kg_m2, l2_m, r2_m, "
-                  "m2_kg, iz2_kg_m2), or an arm model's simulation spec (its arm); default "
-                  "Piovesan 2012 Table 1");
+                  "m2_kg, iz2_kg_m2; m, kg, kg m^2; a key left out keeps Piovesan 2012 Table "
+                  "1's value), or an arm model's simulation spec (its arm); default Piovesan "
+                  "2012 Table 1");
   sub->add_option("--window", cli->window, "kaiser:BETA, hann or gaussian:SIGMA_FRACTION")
       ->capture_default_str();
   sub->add_option("--window-s", o.spectrogram.window_s, "STFT window length, s")
