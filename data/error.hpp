@@ -2,6 +2,7 @@
 // Error tiers of stiffid (see STYLE.md): bad user input throws InputError; numerical outcomes that
 // are not bugs are reported in result structs (Status); broken invariants are asserts.
 
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -23,6 +24,14 @@ struct Status {
   static Status success() { return {}; }
   static Status failure(std::string why) { return {false, std::move(why)}; }
 };
+
+/// A number as messages print it: six significant digits without trailing zeros (2.5, 0.0025,
+/// 4000, -0.01), where std::to_string prints six fixed decimals (2.500000, 0.002500).
+inline std::string number_text(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6g", value);
+  return text;
+}
 
 /// Version string of the build (CMake project version).
 inline const char* version() { return STIFFID_VERSION; }

@@ -43,7 +43,7 @@ constexpr double kPieceArea[4] = {1.0 / 24, 11.0 / 24, 11.0 / 24, 1.0 / 24};
 UniformCubicBspline::UniformCubicBspline(double length_s, double target_spacing_s) {
   if (!(length_s > 0.0) || !(target_spacing_s > 0.0) || !std::isfinite(length_s))
     throw InputError("cubic B-spline: length and knot spacing must be positive, got " +
-                     std::to_string(length_s) + " s and " + std::to_string(target_spacing_s) +
+                     number_text(length_s) + " s and " + number_text(target_spacing_s) +
                      " s");
   spans_ = std::max(1, static_cast<int>(std::lround(length_s / target_spacing_s)));
   spacing_s_ = length_s / spans_;

@@ -73,8 +73,8 @@ Prepared prepare(const Eigen::Ref<const Eigen::MatrixXd>& x, double rate_hz, dou
   const int h = d > 1 ? decimation.half_taps_per_factor * d : 0;
   const int onset = static_cast<int>(std::ceil((onset_s - start_s) * rate_hz - 1e-9));
   if (onset < 0 || onset >= s)
-    throw InputError("modal fit: onset " + std::to_string(onset_s) + " s is outside the record [" +
-                     std::to_string(start_s) + ", " + std::to_string(start_s + s / rate_hz) +
+    throw InputError("modal fit: onset " + number_text(onset_s) + " s is outside the record [" +
+                     number_text(start_s) + ", " + number_text(start_s + s / rate_hz) +
                      ") s");
   auto up = [d](int i) { return i >= 0 ? (i + d - 1) / d : -((-i) / d); };  // ceil(i / d)
   const int noise_first =
@@ -82,8 +82,8 @@ Prepared prepare(const Eigen::Ref<const Eigen::MatrixXd>& x, double rate_hz, dou
   const int noise_last = (onset - 1 - h) >= 0 ? (onset - 1 - h) / d : -1;
   if (noise_last - noise_first + 1 < 8 * c || onset < std::lround(o.noise_window_s * rate_hz))
     throw InputError("modal fit: the record needs noise_window_s = " +
-                     std::to_string(o.noise_window_s) + " s of samples before the onset (plus " +
-                     std::to_string(h / rate_hz) + " s for the decimation filter)");
+                     number_text(o.noise_window_s) + " s of samples before the onset (plus " +
+                     number_text(h / rate_hz) + " s for the decimation filter)");
   const int first = up(onset + static_cast<int>(std::ceil(o.skip_s * rate_hz)) + h);
   const int last = (s - 1 - h) / d;
   const int n = std::max(0, last - first + 1);
@@ -91,7 +91,7 @@ Prepared prepare(const Eigen::Ref<const Eigen::MatrixXd>& x, double rate_hz, dou
   p.rate_hz = rate_hz / d;
   if (n < 2 || (n - 1) / p.rate_hz < 0.5)
     throw InputError("modal fit: less than 0.5 s of free response after onset + skip_s (" +
-                     std::to_string(n / p.rate_hz) + " s)");
+                     number_text(n / p.rate_hz) + " s)");
   const DecimationResult decimated = decimate(x, rate_hz, decimation);
   p.y = decimated.samples.middleRows(first, n);
   p.t_s = start_s + Eigen::VectorXd::LinSpaced(n, first, last).array() * (d / rate_hz);
@@ -705,9 +705,9 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
   const int windows = n - 2 * half;
   const int needed = matrix_pencil_min_samples(modes, real);
   if (windows < 1 || width < needed) {
-    throw InputError("modal fit: sliding_window_s = " + std::to_string(options.sliding_window_s) +
+    throw InputError("modal fit: sliding_window_s = " + number_text(options.sliding_window_s) +
                      " s needs " + std::to_string(std::max(width, needed)) +
-                     " samples at " + std::to_string(p.rate_hz) + " Hz and fewer than the " +
+                     " samples at " + number_text(p.rate_hz) + " Hz and fewer than the " +
                      std::to_string(n) + " fitted ones");
   }
   const double dt = 1.0 / p.rate_hz, centre = half * dt;

@@ -39,7 +39,7 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
   }
   if (!(options.window_s > 0.0) || !(options.hop_s > 0.0)) {
     throw InputError("reassigned spectrogram: --window-s and --hop-s must be positive, got " +
-                     std::to_string(options.window_s) + " and " + std::to_string(options.hop_s));
+                     number_text(options.window_s) + " and " + number_text(options.hop_s));
   }
   const double dt = 1.0 / signal.sample_rate_hz;
   const int half = std::max(1, static_cast<int>(std::lround(options.window_s / (2.0 * dt))));
@@ -49,8 +49,8 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
   if (begin < 0 || end > samples || end - begin < 2 * half + 1) {
     throw InputError("reassigned spectrogram: the analysed region has " +
                      std::to_string(std::max(0, end - begin)) + " samples (" +
-                     std::to_string(std::max(0, end - begin) * dt) +
-                     " s) but one window of --window-s " + std::to_string(options.window_s) +
+                     number_text(std::max(0, end - begin) * dt) +
+                     " s) but one window of --window-s " + number_text(options.window_s) +
                      " s needs " + std::to_string(2 * half + 1) + " samples");
   }
   const int n_fft = options.fft_size > 0 ? options.fft_size : next_power_of_two(2 * half + 1);
@@ -67,9 +67,9 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
           : nyquist_bin;
   if (k_hi < k_lo) {
     throw InputError("reassigned spectrogram: no FFT bin between " +
-                     std::to_string(options.min_frequency_hz) + " and " +
-                     std::to_string(options.max_frequency_hz) + " Hz (bin spacing " +
-                     std::to_string(df) + " Hz)");
+                     number_text(options.min_frequency_hz) + " and " +
+                     number_text(options.max_frequency_hz) + " Hz (bin spacing " +
+                     number_text(df) + " Hz)");
   }
 
   ReassignedSpectrogram r;

@@ -537,10 +537,10 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
   int band_hi = sg.bins() - 1;
   while (band_hi >= 0 && sg.frequency_hz(band_hi) > options.max_frequency_hz + 1e-9) --band_hi;
   if (band_hi - band_lo + 1 < n) {
-    throw InputError("ridge tracking: the band " + std::to_string(options.min_frequency_hz) +
-                     "-" + std::to_string(options.max_frequency_hz) + " Hz holds " +
+    throw InputError("ridge tracking: the band " + number_text(options.min_frequency_hz) +
+                     "-" + number_text(options.max_frequency_hz) + " Hz holds " +
                      std::to_string(std::max(0, band_hi - band_lo + 1)) + " bins of " +
-                     std::to_string(df) + " Hz, fewer than the " + std::to_string(n) + " modes");
+                     number_text(df) + " Hz, fewer than the " + std::to_string(n) + " modes");
   }
   const Eigen::MatrixXd& raw = options.use_reassigned_power ? sg.reassigned_power : sg.power;
   const double floor =

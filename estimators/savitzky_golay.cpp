@@ -85,13 +85,13 @@ SavitzkyGolayResult savitzky_golay(const Eigen::Ref<const Eigen::MatrixXd>& x,
   if (options.polynomial_order < 0 || options.polynomial_order >= w) {
     throw InputError("Savitzky-Golay: polynomial order " +
                      std::to_string(options.polynomial_order) + " must be in [0, " +
-                     std::to_string(w) + ") for a window of " + std::to_string(options.window_s) +
+                     std::to_string(w) + ") for a window of " + number_text(options.window_s) +
                      " s (" + std::to_string(w) + " samples)");
   }
   if (samples < w) {
     throw InputError("Savitzky-Golay: " + std::to_string(samples) +
                      " samples are fewer than one window of " + std::to_string(w) + " samples (" +
-                     std::to_string(options.window_s) + " s)");
+                     number_text(options.window_s) + " s)");
   }
   const double step = 1.0 / sample_rate_hz;
   const int half = w / 2;

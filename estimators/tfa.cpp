@@ -215,9 +215,9 @@ TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
   r.region_begin_s = dev.start_time_s + signal.begin * dt;
   r.region_end_s = dev.start_time_s + (signal.end - 1) * dt;
   if (signal.end - signal.begin < 1) {
-    throw InputError("the trial ends " + std::to_string(dev.start_time_s + dev.deviation_rad.rows() / fs - dev.free_start_s) +
+    throw InputError("the trial ends " + number_text(dev.start_time_s + dev.deviation_rad.rows() / fs - dev.free_start_s) +
                      " s after the pulse: too short after the onset for one --window-s " +
-                     std::to_string(options.spectrogram.window_s) + " s window");
+                     number_text(options.spectrogram.window_s) + " s window");
   }
 
   ReassignedSpectrogramOptions sg_options = options.spectrogram;
@@ -230,7 +230,7 @@ TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
     r.spectrogram = reassigned_spectrogram(signal, sg_options);
   } catch (const InputError& e) {
     throw InputError(std::string(e.what()) + " (the free response analysed runs from " +
-                     std::to_string(r.region_begin_s) + " to " + std::to_string(r.region_end_s) +
+                     number_text(r.region_begin_s) + " to " + number_text(r.region_end_s) +
                      " s: too short after the onset for one window)");
   }
   RidgeOptions ridge_options = options.ridges;

@@ -53,7 +53,7 @@ double detect_onset_s(const data::Trial& trial, const std::vector<std::string>& 
                      names + ")");
   }
   if (!(threshold > 0.0 && threshold < 1.0)) {
-    throw InputError("onset threshold must be in (0, 1), got " + std::to_string(threshold));
+    throw InputError("onset threshold must be in (0, 1), got " + number_text(threshold));
   }
   Eigen::MatrixXd f = trial.columns(force_channels);
   for (Eigen::Index c = 0; c < f.cols(); ++c) f.col(c).array() -= median(f.col(c));
@@ -86,10 +86,15 @@ DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions
     r.onset_s = options.onset_s;
     pulse_end_s = r.onset_s + std::max(0.0, options.pulse_s);
     if (!std::isfinite(r.onset_s) || r.onset_s < trial.start_time_s || r.onset_s >= t_end) {
-      throw InputError("--onset " + std::to_string(options.onset_s) + " s is outside " +
-                       where(trial) + " (" + std::to_string(trial.start_time_s) + " to " +
-                       std::to_string(t_end) + " s)");
+      throw InputError("--onset " + number_text(options.onset_s) + " s is outside " +
+                       where(trial) + " (" + number_text(trial.start_time_s) + " to " +
+                       number_text(t_end) + " s)");
     }
+  }
+  if (pulse_end_s >= t_end) {
+    throw InputError("--onset " + number_text(r.onset_s) + " s: the pulse ends at " +
+                     number_text(pulse_end_s) + " s (--pulse-s), at or after the end of " +
+                     where(trial) + " (" + number_text(t_end) + " s): no free response");
   }
   const int onset = static_cast<int>(std::ceil((r.onset_s - trial.start_time_s) / dt - 1e-9));
   int first_row = std::max(0, onset - static_cast<int>(std::lround(std::max(0.0, options.lead_s) / dt)));
@@ -104,9 +109,9 @@ DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions
     const int pre = static_cast<int>(std::lround(options.pre_onset_s / dt));
     if (pre < 1 || onset - pre < 0) {
       throw InputError(where(trial) + ": the posture is the mean over " +
-                       std::to_string(options.pre_onset_s) + " s before the onset at " +
-                       std::to_string(r.onset_s) + " s, but the trial starts at " +
-                       std::to_string(trial.start_time_s) + " s (give --baseline or a later onset)");
+                       number_text(options.pre_onset_s) + " s before the onset at " +
+                       number_text(r.onset_s) + " s, but the trial starts at " +
+                       number_text(trial.start_time_s) + " s (give --baseline or a later onset)");
     }
     const Eigen::RowVectorXd posture = angles.middleRows(onset - pre, pre).colwise().mean();
     r.posture_rad = posture.replicate(rows, 1);
@@ -114,17 +119,17 @@ DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions
     if (std::abs(baseline->sample_rate_hz - trial.sample_rate_hz) >
         1e-9 * trial.sample_rate_hz) {
       throw InputError("--baseline " + where(*baseline) + ": sample rate " +
-                       std::to_string(baseline->sample_rate_hz) + " Hz differs from the trial's " +
-                       std::to_string(trial.sample_rate_hz) + " Hz");
+                       number_text(baseline->sample_rate_hz) + " Hz differs from the trial's " +
+                       number_text(trial.sample_rate_hz) + " Hz");
     }
     const Eigen::MatrixXd base = angles_rad(*baseline, options.angle_channels, "--baseline");
     const long first = std::lround((r.start_time_s - baseline->start_time_s) / dt);
     if (first < 0 || first + rows > baseline->sample_count()) {
       throw InputError("--baseline " + where(*baseline) + " covers " +
-                       std::to_string(baseline->start_time_s) + " to " +
-                       std::to_string(baseline->start_time_s + baseline->duration_s()) +
-                       " s but the trial needs " + std::to_string(r.start_time_s) + " to " +
-                       std::to_string(t_end) + " s");
+                       number_text(baseline->start_time_s) + " to " +
+                       number_text(baseline->start_time_s + baseline->duration_s()) +
+                       " s but the trial needs " + number_text(r.start_time_s) + " to " +
+                       number_text(t_end) + " s");
     }
     r.posture_rad = base.middleRows(first, rows);
   }

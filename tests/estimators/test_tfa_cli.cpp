@@ -5,6 +5,7 @@
 
 #include <boost/test/unit_test.hpp>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -22,6 +23,18 @@ const std::string kTrial = std::string(STIFFID_TEST_DATA_DIR) + "/tfa/posture_co
 int run(const std::string& args) {
   const int status = std::system((std::string(STIFFID_BINARY) + " tfa " + args + " 2>/dev/null").c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// What `stiffid tfa ARGS` prints on stderr (stdout discarded).
+std::string run_stderr(const std::string& args) {
+  const std::string command = std::string(STIFFID_BINARY) + " tfa " + args + " 2>&1 >/dev/null";
+  std::string text;
+  if (FILE* pipe = ::popen(command.c_str(), "r")) {
+    char buffer[512];
+    while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) text += buffer;
+    ::pclose(pipe);
+  }
+  return text;
 }
 
 fs::path scratch(const std::string& name) {
@@ -263,6 +276,13 @@ BOOST_AUTO_TEST_CASE(bad_input_exits_2_without_writing) {
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,elbow --onset 2.5 -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 9 -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 4.6 -o " + out.string()), 2);
+  // The trial ends at 5.0 s: a pulse from 4.99 s (--pulse-s 0.02) leaves no free response, and the
+  // message says so in the trial's units (not "ends -0.010000 s after the pulse").
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 4.99 -o " + out.string()), 2);
+  const std::string why = run_stderr(kTrial + " --angles th1,th2 --onset 4.99 -o " + out.string());
+  BOOST_CHECK_MESSAGE(why.find("the pulse ends at 5.01 s") != std::string::npos &&
+                          why.find("(5 s)") != std::string::npos,
+                      why);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset soon -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --window blackman -o " + out.string()), 2);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --real-terms 1000 -o " + out.string()), 2);
