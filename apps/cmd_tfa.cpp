@@ -23,7 +23,8 @@
 //   "normalized_force": {"q"[j], "q_dot"[j], "sigma"[j], "envelope"[j], "envelope_force"[j]},
 //   "valid"[j] (per time: mode j's amplitude-to-noise ratio and frequency SD within limits; for
 //   the spectrogram method: the frame resolved, its frequency inside the ridge band and near its
-//   ridge, its amplitude-to-noise ratio at least 0 dB), "anr_db"[j] (both methods; null for the
+//   ridge, its amplitude-to-noise ratio at least 0 dB, the frame's fits in the ridges' order and
+//   without cancelling modes), "anr_db"[j] (both methods; null for the
 //   spectrogram when the trial holds no record before the onset), "K_valid" (per time: every
 //   mode valid and eta^2 > Gamma^2; modal).
 // For --method modal the spectrogram options are not used; "options" lists the modal ones and the
