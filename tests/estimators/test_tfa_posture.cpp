@@ -96,13 +96,23 @@ BOOST_AUTO_TEST_CASE(constant_stiffness_noise_free_is_recovered_to_one_percent) 
   BOOST_CHECK_LT(percent_rms_error(r, "constant", 0, 0, 2.5, 5.0), 1.0);
 }
 
+BOOST_AUTO_TEST_CASE(constant_stiffness_at_20_db_meets_issue_6s_k11_target) {
+  // Issue 6: k11 within 10 % (percentage RMS over 2.6-4.5 s) at 20 dB. Measured 4.8 % (2.6-3.175 s:
+  // 0.5 %); 29 % before degenerate frame fits were flagged and the chains started from a
+  // non-degenerate frame (docs/tfa.md).
+  const est::TfaResult r = est::identify_tfa(posture_trial("constant", 20.0, 7), piovesan_options());
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  BOOST_TEST_MESSAGE("constant, SNR 20 dB: " << report(r, "constant"));
+  BOOST_CHECK_LT(percent_rms_error(r, "constant", 0, 0, 2.6, 4.5), 10.0);
+  BOOST_CHECK_LT(percent_rms_error(r, "constant", 0, 0, 2.6, 3.175), 10.0);
+}
+
 BOOST_AUTO_TEST_CASE(time_varying_and_noisy_cases_are_reported) {
-  // Issue 6 asks k11 within 10 % for sigmoid K and at 20 dB; this implementation does not reach
-  // it yet (see docs/tfa.md, "Limits"): the errors are printed (--log_level=message) for the
-  // report, and only their being finite where the pipeline succeeds is checked.
-  for (const std::string kind : {"constant", "sigmoid", "sharp"}) {
+  // Issue 6 asks k11 within 10 % for sigmoid K too; this implementation does not reach it (see
+  // docs/tfa.md, "Limits"): the errors are printed (--log_level=message) for the report, and
+  // only their being finite where the pipeline succeeds is checked.
+  for (const std::string kind : {"sigmoid", "sharp"}) {
     for (const double snr : {HUGE_VAL, 20.0}) {
-      if (kind == "constant" && snr == HUGE_VAL) continue;
       const est::TfaResult r = est::identify_tfa(posture_trial(kind, snr, 7), piovesan_options());
       BOOST_TEST_MESSAGE(kind << ", SNR " << snr << " dB: " << (r.status.ok ? "" : r.status.message)
                               << report(r, kind));
