@@ -588,19 +588,19 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
   // degenerate fit would carry it along (the constant-K trial at 45 degrees, 20 dB, seed 6: two
   // tracks on the slow mode from the middle frame on, k11 off by 122 %).
   int mid = frames / 2;
-  fits[mid] = fit_frame(mid, nullptr, 0.0);
-  for (int d = 1; !(fits[mid].ok && !fits[mid].degenerate) && d < frames; ++d) {
+  FrameFit start = fit_frame(mid, nullptr, 0.0);
+  for (int d = 1; !(start.ok && !start.degenerate) && d < frames; ++d) {
     for (int m : {frames / 2 + d, frames / 2 - d}) {
       if (m < 0 || m >= frames) continue;
       FrameFit fit = fit_frame(m, nullptr, 0.0);
       if (fit.ok && !fit.degenerate) {
-        fits[mid] = FrameFit{};
+        start = std::move(fit);
         mid = m;
-        fits[mid] = std::move(fit);
         break;
       }
     }
   }
+  fits[mid] = std::move(start);
   data::parallel_for_index(2, [&](std::size_t chain) {
     if (chain == 0) {
       for (int m = mid + 1; m < frames; ++m) fits[m] = fit_frame(m, &fits[m - 1], sg.hop_s);

@@ -25,16 +25,16 @@ int run(const std::string& args) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-// What `stiffid tfa ARGS` prints on stderr (stdout discarded).
-std::string run_stderr(const std::string& args) {
+// Exit code of `stiffid tfa ARGS`, with what it printed on stderr in `err` (stdout discarded).
+int run(const std::string& args, std::string& err) {
   const std::string command = std::string(STIFFID_BINARY) + " tfa " + args + " 2>&1 >/dev/null";
-  std::string text;
-  if (FILE* pipe = ::popen(command.c_str(), "r")) {
-    char buffer[512];
-    while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) text += buffer;
-    ::pclose(pipe);
-  }
-  return text;
+  err.clear();
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return -1;
+  char buffer[512];
+  while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) err += buffer;
+  const int status = ::pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 fs::path scratch(const std::string& name) {
@@ -278,8 +278,8 @@ BOOST_AUTO_TEST_CASE(bad_input_exits_2_without_writing) {
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 4.6 -o " + out.string()), 2);
   // The trial ends at 5.0 s: a pulse from 4.99 s (--pulse-s 0.02) leaves no free response, and the
   // message says so in the trial's units (not "ends -0.010000 s after the pulse").
-  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 4.99 -o " + out.string()), 2);
-  const std::string why = run_stderr(kTrial + " --angles th1,th2 --onset 4.99 -o " + out.string());
+  std::string why;
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 4.99 -o " + out.string(), why), 2);
   BOOST_CHECK_MESSAGE(why.find("the pulse ends at 5.01 s") != std::string::npos &&
                           why.find("(5 s)") != std::string::npos,
                       why);
