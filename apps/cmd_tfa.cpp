@@ -287,6 +287,7 @@ void run(TfaCommandOptions cli) {
                            {"fmax_hz", o.ridges.max_frequency_hz},
                            {"jump_penalty_per_hz", o.ridges.jump_penalty_per_hz},
                            {"max_jump_hz", o.ridges.max_jump_hz},
+                           {"chirp", o.ridges.fit_chirp},
                            {"sg_window_s", o.modal.smoothing.window_s},
                            {"sg_order", o.modal.smoothing.polynomial_order},
                            {"analytic", o.deviation.analytic}});
@@ -446,6 +447,10 @@ void add_tfa_command(CLI::App& app) {
                   "ridge cost per Hz of frequency change per frame")
       ->capture_default_str();
   sub->add_option("--max-jump-hz", o.ridges.max_jump_hz, "largest ridge jump per frame, Hz")
+      ->capture_default_str();
+  sub->add_option("--chirp", o.ridges.fit_chirp,
+                  "spectrogram frame fits with each mode's chirp rate (d lambda/dt, 1/s^2) "
+                  "fitted: true or false")
       ->capture_default_str();
   sub->add_option("--sg-window-s", o.modal.smoothing.window_s, "Savitzky-Golay window, s")
       ->capture_default_str();

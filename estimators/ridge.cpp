@@ -8,6 +8,7 @@
 
 #include "data/error.hpp"
 #include "data/parallel.hpp"
+#include "estimators/savitzky_golay.hpp"
 
 namespace stiffid::estimators {
 namespace {
@@ -147,6 +148,7 @@ struct FrameContext {
 /// sum_j c_jk exp(lambda_j u) (+ conj(c_jk) exp(conj(lambda_j) u) for real signals).
 struct FrameFit {
   std::vector<cd> lambda;
+  std::vector<cd> chirp;  ///< d lambda_j / dt at the frame centre, 1/s^2 (RidgeOptions::fit_chirp)
   Eigen::MatrixXcd coef;
   bool ok = false;
   /// Window transforms of the last evaluation (gauss_newton) at these lambdas, window cut and
@@ -156,6 +158,13 @@ struct FrameFit {
   int transforms_lo = 0, transforms_hi = -1;
   std::vector<int> transforms_bins;
   bool degenerate = false;  ///< not n distinct modes (degenerate_fit)
+  bool misfit = false;      ///< the chirped frame model misses the data (hold_chirp_rates)
+  /// Gauss-Newton's final sum of squared residuals over the sum of squares of the data it fitted
+  /// (X_h and the weighted X_dh at the fit bins): the part of the frame the model misses.
+  double relative_cost = std::numeric_limits<double>::infinity();
+  double cost = std::numeric_limits<double>::infinity();  ///< the final sum of squares
+  double noise_per_row = 0.0;  ///< expected noise variance of one real residual (0: unknown)
+  std::vector<int> centres;    ///< the bins the fit bins were taken around
 };
 
 /// Least-squares complex amplitudes for given lambdas on `bins` (X_h only).
@@ -255,10 +264,26 @@ FrameFit initial_fit(const FrameContext& ctx, int m, const std::vector<int>& rid
   return fit;
 }
 
-/// Gauss-Newton on the frame's exact model of X_h and X_dh at the fit bins (ridge bins +- q) in
-/// all channels: unknowns Re/Im lambda_j and Re/Im c_jk, derivatives from the window transforms
-/// (dW/ds = Wt, dWd/ds = Wdt). X_dh is weighted by T / (2 pi) to match the scale of X_h.
-bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge, FrameFit& fit) {
+/// The spectrogram bin nearest frequency_hz (clamped to the bins kept).
+int nearest_bin(const ReassignedSpectrogram& sg, double frequency_hz) {
+  const double df = sg.sample_rate_hz / sg.fft_size;
+  return std::clamp(static_cast<int>(std::lround(frequency_hz / df)) - sg.first_bin, 0,
+                    sg.bins() - 1);
+}
+
+/// The frame model's chirp rates g_j = d lambda_j / dt: zero (a stationary fit), fitted with the
+/// other unknowns, or held at FrameFit::chirp.
+enum class Chirp { none, fitted, held };
+
+/// Gauss-Newton on the frame's exact model of X_h and X_dh at the fit bins (the bins `centres`
+/// +- fit_half_width_bins) in all channels: unknowns Re/Im lambda_j, Re/Im c_jk and, with
+/// Chirp::fitted, Re/Im g_j, derivatives from the window transforms (dW/ds = Wt, dWd/ds = Wdt,
+/// dW/dg = Wtt / 2, dWd/dg = Wdtt / 2). X_dh is weighted by T / (2 pi) to match the scale of X_h.
+/// Leaves the final sum of squares, its part of the data and the noise per residual in `fit`.
+bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centres, FrameFit& fit,
+                  Chirp chirp_mode) {
+  const bool chirp = chirp_mode == Chirp::fitted;    // chirp rates among the unknowns
+  const bool chirped = chirp_mode != Chirp::none;    // transforms with the chirp rates
   const ReassignedSpectrogram& sg = ctx.sg;
   const double dt = 1.0 / sg.sample_rate_hz;
   const SampledWindow::Cut cut = sg.frame_window(m);
@@ -266,7 +291,7 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
   std::vector<int> bins;
   for (int j = 0; j < n; ++j) {
     for (int d = -ctx.options.fit_half_width_bins; d <= ctx.options.fit_half_width_bins; ++d) {
-      const int k = ridge[j] + d;
+      const int k = centres[j] + d;
       if (k >= 0 && k < sg.bins()) bins.push_back(k);
     }
   }
@@ -274,21 +299,41 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
   bins.erase(std::unique(bins.begin(), bins.end()), bins.end());
   const int nb = static_cast<int>(bins.size());
   const double wd_weight = (cut.hi - cut.lo) * dt / (2.0 * M_PI);
-  const int unknowns = 2 * n + 2 * n * channels;
+  const int nl = chirp ? 4 : 2;  // real unknowns per mode: lambda (and its chirp rate)
+  if (static_cast<int>(fit.chirp.size()) != n || !chirped) fit.chirp.assign(n, cd(0.0));
+  fit.centres = centres;
+  const double half_window_s = 0.5 * (cut.hi - cut.lo) * dt;
+  const int unknowns = nl * n + 2 * n * channels;
   const int rows = 2 * 2 * nb * channels;  // (h, dh) x bins x channels, real and imaginary
   const int images = ctx.real_signal ? 2 : 1;
 
+  // The chirped windows of each mode: once for held chirp rates, at every evaluation for fitted.
+  std::vector<SampledWindow::ChirpedCut> chirped_cuts(chirped ? n : 0);
+  if (chirp_mode == Chirp::held) {
+    for (int j = 0; j < n; ++j) chirped_cuts[j] = SampledWindow::chirped(cut, dt, fit.chirp[j], false);
+  }
   // Fills f.transforms for f.lambda (unless they are already those of this cut and these bins),
   // then the residual and the Jacobian.
   auto evaluate = [&](FrameFit& f, Eigen::VectorXd& residual, Eigen::MatrixXd* jac,
                       bool transforms_current) {
-    if (!transforms_current || f.transforms_lo != cut.lo || f.transforms_hi != cut.hi ||
+    if (chirped || !transforms_current || f.transforms_lo != cut.lo || f.transforms_hi != cut.hi ||
         f.transforms_bins != bins) {
       f.transforms.resize(nb * n * images);
+      if (chirp) {  // the chirp rates are unknowns: their windows change with every step
+        for (int j = 0; j < n; ++j) chirped_cuts[j] = SampledWindow::chirped(cut, dt, f.chirp[j], true);
+      }
       for (int i = 0; i < nb; ++i) {
         const double nu = 2.0 * M_PI * sg.frequency_hz(bins[i]);
         for (int j = 0; j < n; ++j) {
           auto* t = &f.transforms[(i * n + j) * images];
+          if (chirped) {
+            t[0] = SampledWindow::transform(chirped_cuts[j], dt, f.lambda[j] - kI * nu);
+            if (images == 2) {  // the image's windows are those of conj(g)
+              t[1] = SampledWindow::transform(chirped_cuts[j], dt,
+                                              std::conj(f.lambda[j]) - kI * nu, true);
+            }
+            continue;
+          }
           t[0] = SampledWindow::transform(cut, dt, f.lambda[j] - kI * nu);
           if (images == 2) {
             t[1] = SampledWindow::transform(cut, dt, std::conj(f.lambda[j]) - kI * nu);
@@ -314,6 +359,8 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
           cd dh_dp = cc * a.wt, dd_dp = cc * a.wdt;  // d/d Re lambda
           cd dh_dq = kI * cc * a.wt, dd_dq = kI * cc * a.wdt;
           cd dh_dre = a.w, dd_dre = a.wd, dh_dim = kI * a.w, dd_dim = kI * a.wd;
+          cd dh_dgp = 0.5 * cc * a.wtt, dd_dgp = 0.5 * cc * a.wdtt;  // d/d Re g
+          cd dh_dgq = kI * dh_dgp, dd_dgq = kI * dd_dgp;
           if (images == 2) {
             const auto& b = t[j * images + 1];
             const cd cb = std::conj(cc);
@@ -327,13 +374,17 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
             dd_dre += b.wd;
             dh_dim -= kI * b.w;
             dd_dim -= kI * b.wd;
+            dh_dgp += 0.5 * cb * b.wtt;
+            dd_dgp += 0.5 * cb * b.wdtt;
+            dh_dgq -= 0.5 * kI * cb * b.wtt;
+            dd_dgq -= 0.5 * kI * cb * b.wdtt;
           }
           if (jac) {
-            const int cols[4] = {2 * j, 2 * j + 1, 2 * n + 2 * (j * channels + c),
-                                 2 * n + 2 * (j * channels + c) + 1};
-            const cd dh[4] = {dh_dp, dh_dq, dh_dre, dh_dim};
-            const cd dd[4] = {dd_dp, dd_dq, dd_dre, dd_dim};
-            for (int q = 0; q < 4; ++q) {
+            const int cols[6] = {nl * j, nl * j + 1, nl * n + 2 * (j * channels + c),
+                                 nl * n + 2 * (j * channels + c) + 1, nl * j + 2, nl * j + 3};
+            const cd dh[6] = {dh_dp, dh_dq, dh_dre, dh_dim, dh_dgp, dh_dgq};
+            const cd dd[6] = {dd_dp, dd_dq, dd_dre, dd_dim, dd_dgp, dd_dgq};
+            for (int q = 0; q < (chirp ? 6 : 4); ++q) {
               (*jac)(row_h, cols[q]) += dh[q].real();
               (*jac)(row_h + 1, cols[q]) += dh[q].imag();
               (*jac)(row_d, cols[q]) += wd_weight * dd[q].real();
@@ -365,9 +416,10 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
     double trial_cost = cost;
     for (int half = 0; half < 6 && !improved; ++half, scale *= 0.5) {
       for (int j = 0; j < n; ++j) {
-        trial.lambda[j] = fit.lambda[j] + scale * cd(step(2 * j), step(2 * j + 1));
+        trial.lambda[j] = fit.lambda[j] + scale * cd(step(nl * j), step(nl * j + 1));
+        if (chirp) trial.chirp[j] = fit.chirp[j] + scale * cd(step(nl * j + 2), step(nl * j + 3));
         for (int c = 0; c < channels; ++c) {
-          const int col = 2 * n + 2 * (j * channels + c);
+          const int col = nl * n + 2 * (j * channels + c);
           trial.coef(j, c) = fit.coef(j, c) + scale * cd(step(col), step(col + 1));
         }
       }
@@ -383,7 +435,9 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
     double relative_step = 0.0;
     for (int j = 0; j < n; ++j) {
       const double lambda_step =
-          std::abs(trial.lambda[j] - fit.lambda[j]) / std::abs(fit.lambda[j]);
+          (std::abs(trial.lambda[j] - fit.lambda[j]) +
+           half_window_s * std::abs(trial.chirp[j] - fit.chirp[j])) /
+          std::abs(fit.lambda[j]);
       const double size = fit.coef.row(j).cwiseAbs().maxCoeff();
       const double coef_step = (trial.coef.row(j) - fit.coef.row(j)).cwiseAbs().maxCoeff() / size;
       relative_step = std::max({relative_step, lambda_step, coef_step});
@@ -394,6 +448,23 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& ridge,
     const double previous = cost;
     cost = trial_cost;
     if (previous - cost <= 1e-14 * previous || relative_step <= 1e-6) break;
+  }
+  double data = 0.0;
+  for (int i = 0; i < nb; ++i) {
+    for (int c = 0; c < channels; ++c) {
+      data += std::norm(sg.stft[c](bins[i], m)) +
+              wd_weight * wd_weight * std::norm(sg.stft_derivative[c](bins[i], m));
+    }
+  }
+  fit.relative_cost = data > 0.0 ? cost / data : std::numeric_limits<double>::infinity();
+  fit.cost = cost;
+  fit.noise_per_row = 0.0;
+  if (ctx.options.noise_covariance.rows() == channels) {
+    // White noise of variance S_cc per sample: E|X_h|^2 = S_cc sum h^2, E|X_dh|^2 = S_cc sum dh^2
+    // (weighted by wd_weight^2), half of each in the real and the imaginary row.
+    const double trace = ctx.options.noise_covariance.trace();
+    fit.noise_per_row = trace * (cut.h.squaredNorm() + wd_weight * wd_weight * cut.dh.squaredNorm()) /
+                        (4.0 * channels);
   }
   return std::isfinite(cost);
 }
@@ -430,6 +501,115 @@ bool degenerate_fit(const FrameContext& ctx, int m, const FrameFit& fit) {
   }
   const double ratio = std::pow(10.0, ctx.options.max_mode_to_data_db / 10.0);
   return std::any_of(own.begin(), own.end(), [&](double e) { return e > ratio * data; });
+}
+
+/// Pass 2 of the frame fits. Pass 1 fitted the frames of `grid` (every stride-th frame), each
+/// with chirp rates or without (take_chirped in track_ridges). Here each mode's chirp rate is held
+/// at the slope of its pass-1 lambda track (Savitzky-Golay, order 2, over chirp_slope_window_s;
+/// grid frames whose fit failed or is degenerate interpolated linearly between their neighbours),
+/// interpolated to every frame, and every frame's lambdas and amplitudes are fitted, starting from
+/// the nearest good pass-1 fit moved along its lambdas and the held rates. The per-frame chirp
+/// rates of pass 1 follow the noise where the data barely ask for them; their smoothed track does
+/// not, and it reaches the frames of cut windows, where pass 1 fits none. The frames are
+/// independent here: run in parallel, each with its own result.
+void hold_chirp_rates(const FrameContext& ctx, std::vector<FrameFit>& fits,
+                      const std::vector<int>& grid, int stride) {
+  const ReassignedSpectrogram& sg = ctx.sg;
+  const int frames = static_cast<int>(fits.size()), n = ctx.n;
+  const int points = static_cast<int>(grid.size());
+  const int full_length = 2 * sg.half_length;
+  std::vector<int> good;  // indices into grid: fits not failed nor degenerate
+  std::vector<int> full;  // those of them with full windows (pass 1 fitted chirp rates there)
+  for (int p = 0; p < points; ++p) {
+    if (!fits[grid[p]].ok || fits[grid[p]].degenerate) continue;
+    good.push_back(p);
+    const SampledWindow::Cut cut = sg.frame_window(grid[p]);
+    if (cut.hi - cut.lo >= ctx.options.chirp_min_window_fraction * full_length) full.push_back(p);
+  }
+  if (good.empty()) return;
+  // The slopes of the lambda tracks of the full-window fits between the first and the last of
+  // them (the stationary fits of cut windows lag a chirp), bad points interpolated linearly;
+  // beyond them, the slope at the nearest end.
+  Eigen::MatrixXd slope = Eigen::MatrixXd::Zero(points, 2 * n);  // too few fits: none
+  const double rate_hz = 1.0 / (stride * sg.hop_s);
+  if (full.size() >= 3) {
+    const int first = full.front(), span = full.back() - first + 1;
+    Eigen::MatrixXd track(span, 2 * n);  // Re and Im of lambda_j, 1/s and rad/s
+    std::size_t next = 0;                // first full point after p
+    for (int p = first; p < first + span; ++p) {
+      while (next < full.size() && full[next] <= p) ++next;
+      const int a = full[next - 1];
+      const int b = next == full.size() ? a : full[next];
+      const double w = b == a ? 0.0 : static_cast<double>(p - a) / (b - a);
+      for (int j = 0; j < n; ++j) {
+        const cd lambda =
+            fits[grid[a]].lambda[j] + w * (fits[grid[b]].lambda[j] - fits[grid[a]].lambda[j]);
+        track(p - first, 2 * j) = lambda.real();
+        track(p - first, 2 * j + 1) = lambda.imag();
+      }
+    }
+    int window = savitzky_golay_window_samples(ctx.options.chirp_slope_window_s, rate_hz);
+    if (window > span) window = span % 2 == 1 ? span : span - 1;
+    if (window >= 3) {
+      SavitzkyGolayOptions smoothing;
+      smoothing.window_s = (window - 1) / rate_hz;
+      smoothing.polynomial_order = 2;
+      slope.middleRows(first, span) = savitzky_golay(track, rate_hz, smoothing).first_derivative;
+      for (int p = 0; p < first; ++p) slope.row(p) = slope.row(first);
+      for (int p = first + span; p < points; ++p) slope.row(p) = slope.row(first + span - 1);
+    }
+  }
+  // Pass 2 on the grid, each frame from the nearest good full-window pass-1 fit (its own when it
+  // is one; the stationary fits of cut windows lag a chirp), or the nearest good fit when there is
+  // no full-window one, moved along its lambdas and the held rates; into a copy: the pass-1 fits
+  // are read by other points.
+  const std::vector<int>& starts = full.empty() ? good : full;
+  std::vector<FrameFit> refit(points);
+  data::parallel_for_index(static_cast<std::size_t>(points), [&](std::size_t index) {
+    const int p = static_cast<int>(index);
+    const auto after = std::lower_bound(starts.begin(), starts.end(), p);
+    int nearest = after == starts.end() ? starts.back() : *after;
+    if (after != starts.begin() && p - *(after - 1) <= nearest - p) nearest = *(after - 1);
+    FrameFit fit = fits[grid[nearest]];
+    const double shift_s = (grid[p] - grid[nearest]) * sg.hop_s;
+    std::vector<int> centres(n);
+    for (int j = 0; j < n; ++j) {
+      const cd g(slope(p, 2 * j), slope(p, 2 * j + 1));
+      fit.coef.row(j) *= std::exp(fit.lambda[j] * shift_s + 0.5 * g * shift_s * shift_s);
+      fit.lambda[j] += g * shift_s;
+      fit.chirp[j] = g;
+      centres[j] = nearest_bin(sg, fit.lambda[j].imag() / (2.0 * M_PI));
+    }
+    fit.transforms.clear();
+    fit.ok = gauss_newton(ctx, grid[p], centres, fit, Chirp::held);
+    fit.degenerate = fit.ok && degenerate_fit(ctx, grid[p], fit);
+    // A linear chirp over the window cannot follow a stiffness that jumps within it: such fits
+    // miss a part of the data far above the noise.
+    const double rows = 4.0 * static_cast<double>(fit.transforms_bins.size()) * ctx.channels;
+    fit.misfit = fit.ok && fit.relative_cost > ctx.options.max_misfit_fraction &&
+                 fit.cost > ctx.options.max_misfit_noise * rows * fit.noise_per_row;
+    refit[p] = std::move(fit);
+  });
+  for (int p = 0; p < points; ++p) fits[grid[p]] = std::move(refit[p]);
+  // Every other frame: the nearest grid frame's fit, its model exp(lambda u + g u^2 / 2) moved
+  // to the frame's centre (at most stride / 2 hops; the fit describes the whole window), with its
+  // flags.
+  for (int m = 0; m < frames; ++m) {
+    const int p = std::clamp(static_cast<int>(std::lround(static_cast<double>(m - grid.front()) /
+                                                          stride)),
+                             0, points - 1);
+    if (grid[p] == m) continue;
+    FrameFit fit = fits[grid[p]];
+    fit.transforms.clear();
+    if (fit.ok) {
+      const double shift_s = (m - grid[p]) * sg.hop_s;
+      for (int j = 0; j < n; ++j) {
+        fit.coef.row(j) *= std::exp(fit.lambda[j] * shift_s + 0.5 * fit.chirp[j] * shift_s * shift_s);
+        fit.lambda[j] += fit.chirp[j] * shift_s;
+      }
+    }
+    fits[m] = std::move(fit);
+  }
 }
 
 /// Frames whose fitted frequency lies more than outlier_hz from the median of the mode's other
@@ -560,35 +740,98 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
 
   FrameContext ctx{sg, options, n, channels, !sg.analytic};
   std::vector<FrameFit> fits(frames);
-  // A frame starts from its neighbour's solution moved by one hop, or from the ridge's own
-  // starting values when there is none or it fails. A degenerate fit is kept, and flagged: started
-  // afresh from the ridge it lands elsewhere, and the chain that follows it does too (measured on
-  // the simulator's posture trials: it rescued some runs and broke others; docs/tfa.md).
+  const int full_length = 2 * sg.half_length;
+  // Chirp rates are fitted only where the window is long enough to show them: in windows cut
+  // short at the ends of the free response they are ill-determined.
+  auto chirp_allowed = [&](int m) {
+    const SampledWindow::Cut cut = sg.frame_window(m);
+    return options.fit_chirp && cut.hi - cut.lo >= options.chirp_min_window_fraction * full_length;
+  };
+  // The chirped fit replaces the stationary one when it lowers the sum of squares by more than
+  // chirp_min_gain expected noise variances per added unknown (2 per mode): a test of whether
+  // the frame's data ask for the chirp rates. Without a noise level, whenever it lowers it.
+  auto take_chirped = [&](bool stationary_ok, const FrameFit& stationary, bool chirped_ok,
+                          const FrameFit& chirped) {
+    if (!chirped_ok) return false;
+    if (!stationary_ok) return true;
+    return stationary.cost - chirped.cost >
+           options.chirp_min_gain * 2.0 * n * chirped.noise_per_row;
+  };
+  // Pass 1. A frame starts from its neighbour's solution moved by the hop(s) between them along
+  // its lambdas and chirp rates, fitted on the bins around the neighbour's frequencies (the
+  // ridges' bins seed only fits without a neighbour), or from the ridges' own starting values
+  // when there is none or it fails. A degenerate fit is kept, and flagged: started afresh from the
+  // ridge it lands elsewhere (measured on the simulator's posture trials: it rescued some runs and
+  // broke others; docs/tfa.md).
   auto fit_frame = [&](int m, const FrameFit* warm, double shift_s) {
-    std::vector<int> ridge(n);
-    for (int j = 0; j < n; ++j) ridge[j] = r.bin(m, j);
+    std::vector<int> centres(n);
     FrameFit fit;
     bool ok = false;
+    const bool chirp = chirp_allowed(m);
     if (warm != nullptr && warm->ok) {
-      fit = *warm;
-      for (int j = 0; j < n; ++j) fit.coef.row(j) *= std::exp(fit.lambda[j] * shift_s);
-      ok = gauss_newton(ctx, m, ridge, fit);
+      FrameFit moved = *warm;
+      for (int j = 0; j < n; ++j) {
+        const cd g = moved.chirp.empty() ? cd(0.0) : moved.chirp[j];
+        moved.coef.row(j) *= std::exp(moved.lambda[j] * shift_s + 0.5 * g * shift_s * shift_s);
+        moved.lambda[j] += g * shift_s;
+        centres[j] = options.fit_chirp ? nearest_bin(sg, moved.lambda[j].imag() / (2.0 * M_PI))
+                                       : r.bin(m, j);
+      }
+      fit = moved;
+      ok = gauss_newton(ctx, m, centres, fit, Chirp::none);
+      if (chirp) {
+        FrameFit chirped = std::move(moved);
+        const bool chirped_ok = gauss_newton(ctx, m, centres, chirped, Chirp::fitted);
+        if (take_chirped(ok, fit, chirped_ok, chirped)) {
+          fit = std::move(chirped);
+          ok = true;
+        }
+      }
     }
     if (!ok) {
-      fit = initial_fit(ctx, m, ridge);
-      ok = fit.ok && gauss_newton(ctx, m, ridge, fit);
+      for (int j = 0; j < n; ++j) centres[j] = r.bin(m, j);
+      fit = initial_fit(ctx, m, centres);
+      ok = fit.ok && gauss_newton(ctx, m, centres, fit, Chirp::none);
+      if (ok && chirp) {
+        FrameFit chirped = fit;
+        const bool chirped_ok = gauss_newton(ctx, m, centres, chirped, Chirp::fitted);
+        if (take_chirped(ok, fit, chirped_ok, chirped)) fit = std::move(chirped);
+      }
     }
     fit.ok = ok;
     fit.degenerate = ok && degenerate_fit(ctx, m, fit);
     return fit;
   };
-  // Start mid-record (full windows, best conditioned) at the frame nearest the middle (later
-  // first) whose fit is not degenerate, then follow the modes both ways, each frame starting from
-  // its neighbour's solution: two independent chains, run in parallel. A chain started from a
-  // degenerate fit would carry it along (the constant-K trial at 45 degrees, 20 dB, seed 6: two
-  // tracks on the slow mode from the middle frame on, k11 off by 122 %).
+  // The start: of the first frame with a full window (the modes are strongest just after the
+  // pulse), the middle frame and the frame halfway between, the one whose fit is not degenerate
+  // and misses the smallest part of its data (relative_cost); if all are degenerate, the frame
+  // nearest the middle (later first) whose fit is not. The chains then follow the modes both
+  // ways, each frame starting from the last frame of its chain whose fit is not degenerate: two
+  // independent chains, run in parallel. A chain started from a degenerate fit would carry it
+  // along (the constant-K trial at 45 degrees, 20 dB, seed 6: two tracks on the slow mode from
+  // the middle frame on, k11 off by 122 %); one started in the middle of a fast stiffening lost
+  // the weak mode at 45 degrees (sigmoid K), where the first full frame keeps it.
   int mid = frames / 2;
   FrameFit start = fit_frame(mid, nullptr, 0.0);
+  if (options.fit_chirp) {
+    int first_full = mid;
+    for (int m = 0; m < frames; ++m) {
+      const SampledWindow::Cut cut = sg.frame_window(m);
+      if (cut.hi - cut.lo >= full_length) {
+        first_full = m;
+        break;
+      }
+    }
+    for (int m : {first_full, (first_full + frames / 2) / 2}) {
+      if (m == mid || m >= frames / 2) continue;
+      FrameFit fit = fit_frame(m, nullptr, 0.0);
+      if (fit.ok && !fit.degenerate &&
+          (!start.ok || start.degenerate || fit.relative_cost < start.relative_cost)) {
+        start = std::move(fit);
+        mid = m;
+      }
+    }
+  }
   for (int d = 1; !(start.ok && !start.degenerate) && d < frames; ++d) {
     for (int m : {frames / 2 + d, frames / 2 - d}) {
       if (m < 0 || m >= frames) continue;
@@ -601,13 +844,25 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
     }
   }
   fits[mid] = std::move(start);
+  // With chirps, pass 1 fits every stride-th frame (about chirp_track_step_s apart: the grid
+  // through the start), and so does pass 2.
+  const int stride =
+      options.fit_chirp
+          ? std::max(1, static_cast<int>(std::lround(options.chirp_track_step_s / sg.hop_s)))
+          : 1;
   data::parallel_for_index(2, [&](std::size_t chain) {
-    if (chain == 0) {
-      for (int m = mid + 1; m < frames; ++m) fits[m] = fit_frame(m, &fits[m - 1], sg.hop_s);
-    } else {
-      for (int m = mid - 1; m >= 0; --m) fits[m] = fit_frame(m, &fits[m + 1], -sg.hop_s);
+    const int step = chain == 0 ? stride : -stride;
+    int from = mid;
+    for (int m = mid + step; m >= 0 && m < frames; m += step) {
+      fits[m] = fit_frame(m, &fits[from], (m - from) * sg.hop_s);
+      if (!options.fit_chirp || (fits[m].ok && !fits[m].degenerate)) from = m;
     }
   });
+  if (options.fit_chirp) {
+    std::vector<int> grid;
+    for (int m = mid % stride; m < frames; m += stride) grid.push_back(m);
+    hold_chirp_rates(ctx, fits, grid, stride);
+  }
 
   int failed_frames = 0;
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -619,7 +874,8 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
       r.omega_rad_per_s(m, j) = fit.ok ? fit.lambda[j].imag() : nan;
       r.frequency_hz(m, j) = r.omega_rad_per_s(m, j) / (2.0 * M_PI);
       const double f = r.frequency_hz(m, j);
-      r.valid(m, j) = fit.ok && !fit.degenerate && std::isfinite(fit.lambda[j].real()) &&
+      r.valid(m, j) = fit.ok && !fit.degenerate && !fit.misfit &&
+                      std::isfinite(fit.lambda[j].real()) &&
                       f >= options.min_frequency_hz && f <= options.max_frequency_hz;
       r.decay_rate_per_s(m, j) = fit.ok ? fit.lambda[j].real() : nan;
       for (int c = 0; c < channels; ++c) {

@@ -33,6 +33,21 @@ struct RidgeOptions {
                                        ///< channel units^2 (e.g. from before the onset); empty:
                                        ///< no amplitude-to-noise ratio, no such validity test
   double anr_threshold_db = 0.0;       ///< validity: amplitude-to-noise ratio at least this, dB
+  bool fit_chirp = false;              ///< frame model with chirps: each mode's lambda changes
+                                       ///< linearly through the window (track_ridges)
+  double chirp_min_gain = 30.0;        ///< pass 1 keeps a frame's chirped fit when it lowers the
+                                       ///< sum of squares by more than this many expected noise
+                                       ///< variances per real residual, per added unknown
+  double chirp_min_window_fraction = 0.9;  ///< pass 1 fits chirp rates only in windows at least
+                                           ///< this fraction of the full length
+  double chirp_track_step_s = 0.01;    ///< frame fits about this far apart, s (at least every
+                                       ///< frame; the frames between carry the nearest fit)
+  double chirp_slope_window_s = 0.5;   ///< pass 2 holds the chirp rates at the slopes of pass 1's
+                                       ///< lambda tracks, Savitzky-Golay (order 2) over this, s
+  double max_misfit_fraction = 1e-3;   ///< validity, pass 2: a frame whose model misses more
+  double max_misfit_noise = 50.0;      ///< than this fraction of the data's sum of squares at
+                                       ///< the fit bins and more than max_misfit_noise expected
+                                       ///< noise variances per real residual is invalid
   double max_mode_to_data_db = 6.0;    ///< validity: a mode's own part of the frame's STFT at the
                                        ///< fit bins at most this far above the STFT's energy
                                        ///< there, dB (more: modes cancelling each other; two

@@ -201,4 +201,88 @@ SampledWindow::Transform SampledWindow::transform(const Cut& cut, double step_s,
   return t;
 }
 
+SampledWindow::ChirpedCut SampledWindow::chirped(const Cut& cut, double step_s,
+                                                  std::complex<double> g, bool moments) {
+  using cd = std::complex<double>;
+  ChirpedCut c;
+  c.lo = cut.lo;
+  c.hi = cut.hi;
+  c.windows = moments ? 6 : 4;
+  const int len = static_cast<int>(cut.h.size());
+  c.re.resize(len, c.windows);
+  c.im.resize(len, c.windows);
+  // exp(g u^2 / 2) along u = (lo + i) dt: the ratio of consecutive terms,
+  // exp(g (2 (lo + i) + 1) dt^2 / 2), itself steps by exp(g dt^2).
+  const double u0 = cut.lo * step_s;
+  cd e = std::exp(0.5 * g * u0 * u0);
+  cd ratio = std::exp(0.5 * g * (2.0 * cut.lo + 1.0) * step_s * step_s);
+  const cd ratio_step = std::exp(g * step_s * step_s);
+  for (int i = 0; i < len; ++i) {
+    const double u = (cut.lo + i) * step_s;
+    const double w[6] = {cut.h(i), cut.dh(i), cut.th(i), cut.tdh(i), u * cut.th(i), u * cut.tdh(i)};
+    for (int k = 0; k < c.windows; ++k) {
+      c.re(i, k) = w[k] * e.real();
+      c.im(i, k) = w[k] * e.imag();
+    }
+    e *= ratio;
+    ratio *= ratio_step;
+  }
+  return c;
+}
+
+namespace {
+// The sums of SampledWindow::transform(ChirpedCut) for WINDOWS complex windows (their
+// conjugates when SIGN is -1), in four lanes.
+template <int kWindows, int kSign>
+__attribute__((target_clones("avx2", "default")))
+void chirped_sums(const SampledWindow::ChirpedCut& cut, double step_s, std::complex<double> s,
+                  std::complex<double>* out) {
+  using cd = std::complex<double>;
+  const cd ratio = std::exp(s * step_s);
+  const cd ratio4 = (ratio * ratio) * (ratio * ratio);
+  Lanes er, ei;
+  cd e = std::exp(s * (cut.lo * step_s));
+  for (int q = 0; q < 4; ++q, e *= ratio) {
+    er[q] = e.real();
+    ei[q] = e.imag();
+  }
+  Lanes acc_re[kWindows] = {}, acc_im[kWindows] = {};
+  const int len = static_cast<int>(cut.re.rows());
+  const double r4r = ratio4.real(), r4i = ratio4.imag();
+  int i = 0;
+  for (; i + 4 <= len; i += 4) {
+    for (int k = 0; k < kWindows; ++k) {
+      Lanes ar, ai;
+      std::memcpy(&ar, cut.re.col(k).data() + i, sizeof(Lanes));
+      std::memcpy(&ai, cut.im.col(k).data() + i, sizeof(Lanes));
+      if (kSign < 0) ai = -ai;
+      acc_re[k] += ar * er - ai * ei;
+      acc_im[k] += ar * ei + ai * er;
+    }
+    const Lanes next_re = er * r4r - ei * r4i;
+    ei = er * r4i + ei * r4r;
+    er = next_re;
+  }
+  for (int k = 0; k < kWindows; ++k) {
+    out[k] = 0.0;
+    for (int q = 0; q < 4; ++q) out[k] += cd(acc_re[k][q], acc_im[k][q]);
+  }
+  e = cd(er[0], ei[0]);
+  for (; i < len; ++i, e *= ratio) {
+    for (int k = 0; k < kWindows; ++k) out[k] += cd(cut.re(i, k), kSign * cut.im(i, k)) * e;
+  }
+}
+}  // namespace
+
+SampledWindow::Transform SampledWindow::transform(const ChirpedCut& cut, double step_s,
+                                                  std::complex<double> s, bool conjugate) {
+  std::complex<double> sums[6] = {};
+  if (cut.windows == 6) {
+    conjugate ? chirped_sums<6, -1>(cut, step_s, s, sums) : chirped_sums<6, 1>(cut, step_s, s, sums);
+  } else {
+    conjugate ? chirped_sums<4, -1>(cut, step_s, s, sums) : chirped_sums<4, 1>(cut, step_s, s, sums);
+  }
+  return Transform{sums[0], sums[1], sums[2], sums[3], sums[4], sums[5]};
+}
+
 }  // namespace stiffid::estimators

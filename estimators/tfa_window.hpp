@@ -76,8 +76,29 @@ class SampledWindow {
   /// frequency nu (rad/s) equals c W(lambda - i nu) (and c Wd(lambda - i nu) for dh), exactly.
   struct Transform {
     std::complex<double> w, wd, wt, wdt;  ///< W, Wd and their s-derivatives sum n dt h exp(...)
+    /// sum (n dt)^2 h[n] exp(...) and the same with dh: twice the derivatives of W and Wd with
+    /// respect to the chirp rate g (from a ChirpedCut made with moments; zero otherwise).
+    std::complex<double> wtt, wdtt;
   };
   static Transform transform(const Cut& cut, double step_s, std::complex<double> s);
+
+  /// A cut's windows multiplied by exp(g u^2 / 2), u = n dt, for a linear chirp of the rate
+  /// (g in 1/s^2, complex: the rate of change of the decay rate, real part, and of the angular
+  /// frequency, imaginary part): complex windows h, dh, t h, t dh and, with `moments`, t^2 h and
+  /// t^2 dh, as real and imaginary parts.
+  struct ChirpedCut {
+    int lo = 0, hi = 0;
+    int windows = 4;         ///< 4, or 6 with the second moments
+    Eigen::MatrixXd re, im;  ///< (length x windows): h, dh, t h, t dh[, t^2 h, t^2 dh]
+  };
+  static ChirpedCut chirped(const Cut& cut, double step_s, std::complex<double> g, bool moments);
+  /// Window transforms of a linear chirp: W(s, g) = sum_n h[n] exp(s u + g u^2 / 2), likewise Wd,
+  /// their s-derivatives (sums with u) and, with moments, their g-derivatives (wtt / 2,
+  /// wdtt / 2). For x(t) = c exp(lambda (t - t_c) + g (t - t_c)^2 / 2) an STFT bin at angular
+  /// frequency nu equals c W(lambda - i nu, g), exactly. With g = 0 it equals transform() up to
+  /// round-off. With `conjugate`, the windows of conj(g) (the complex conjugates of the cut's).
+  static Transform transform(const ChirpedCut& cut, double step_s, std::complex<double> s,
+                             bool conjugate = false);
 
  private:
   TfWindow shape_;

@@ -199,6 +199,41 @@ BOOST_AUTO_TEST_CASE(spectrogram_frame_fits_that_are_degenerate_are_flagged_and_
   BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
 }
 
+BOOST_AUTO_TEST_CASE(spectrogram_with_chirped_frame_fits_meets_issue_6s_k11_target) {
+  // Issue 6's target for the spectrogram method: k11 within 10 % over 2.6-4.5 s for constant and
+  // sigmoid K on the simulator's posture trials, noise-free and at 20 dB (noise seed 1), here at
+  // 45, 90 and 135 degrees, with the chirped frame model (RidgeOptions::fit_chirp, `--chirp
+  // true`; measured over seeds 1-6 and 0-135 degrees: at most 8.6 %, docs/tfa.md). The
+  // stationary frame model (the default) lags the sigmoid's sweep: at 45 degrees 20 dB it misses
+  // the target (17.7 % on average over seeds 1-6); checked too, so that the comparison stays
+  // honest.
+  est::TfaOptions chirped = default_options();
+  chirped.method = est::TfaMethod::spectrogram;
+  chirped.ridges.fit_chirp = true;
+  for (const m::ProfileKind profile : {m::ProfileKind::constant, m::ProfileKind::sigmoid}) {
+    for (const double direction : {45.0, 90.0, 135.0}) {
+      for (const double snr : {20.0, std::numeric_limits<double>::infinity()}) {
+        const Case c = run_spec(
+            m::piovesan_impulse_trial(m::TaskKind::posture, profile, m::ProfileKind::constant,
+                                      direction * M_PI / 180.0),
+            snr, 1, chirped);
+        BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
+        const double k11 = percent_rms_error(c, false, 0, 0, 2.6, 4.5);
+        BOOST_TEST_MESSAGE("spectrogram, chirped, " << (profile == m::ProfileKind::constant ? "constant" : "sigmoid") << ", " << direction
+                                                   << " deg, " << snr << " dB:" << report(c));
+        BOOST_CHECK_LE(k11, 10.0);
+      }
+    }
+  }
+  est::TfaOptions stationary = default_options();
+  stationary.method = est::TfaMethod::spectrogram;
+  const Case c = run_spec(m::piovesan_impulse_trial(m::TaskKind::posture, m::ProfileKind::sigmoid,
+                                                    m::ProfileKind::constant, M_PI / 4.0),
+                          20.0, 1, stationary);
+  BOOST_TEST_MESSAGE("spectrogram, stationary, sigmoid, 45 deg, 20 dB:" << report(c));
+  BOOST_CHECK_GT(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 10.0);
+}
+
 BOOST_AUTO_TEST_CASE(noise_free_trials_are_valid_and_accurate) {
   // Without output noise the pre-onset noise is the floor of damped_modes.cpp and the residual is
   // the nonlinear arm's model error: the fit must not chase it (with the former 60 dB floor it
