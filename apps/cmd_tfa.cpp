@@ -8,7 +8,8 @@
 //               [--shape-knots-s 0.5] [--baseline BASE.csv] [--subject SPEC.json]
 //               [--window kaiser:3|hann|gaussian:S] [--window-s 0.75] [--hop-s 0.0025]
 //               [--fft-size N] [--fmin 0.5] [--fmax 20] [--jump-penalty 2] [--max-jump-hz 0.5]
-//               [--sg-window-s 0.25] [--sg-order 3] [--pulse-s 0.02] [--analytic]
+//               [--chirp false|true] [--sg-window-s 0.25] [--sg-order 3] [--pulse-s 0.02]
+//               [--analytic]
 //               [--decimation D] [-o OUT.json] [--spectrogram OUT.csv]
 //
 // Output JSON (stdout without -o; every series runs over "t_s", frame centres in s; non-finite
@@ -24,11 +25,15 @@
 //   "valid"[j] (per time: mode j's amplitude-to-noise ratio and frequency SD within limits; for
 //   the spectrogram method: the frame resolved, its frequency inside the ridge band and near its
 //   ridge, its amplitude-to-noise ratio at least 0 dB, the frame's fits in the ridges' order and
-//   without cancelling modes), "anr_db"[j] (both methods; null for the
+//   without cancelling modes, and with --chirp true its chirped model not missing the data),
+//   "anr_db"[j] (both methods; null for the
 //   spectrogram when the trial holds no record before the onset), "K_valid" (per time: every
 //   mode valid and eta^2 > Gamma^2; modal).
 // For --method modal the spectrogram options are not used; "options" lists the modal ones and the
 // data-chosen weights, and f_ridge_hz / alpha_ridge_per_s repeat the fitted tracks.
+// --chirp true (spectrogram method): frame fits whose modes' lambdas change linearly through the
+// window (estimators/ridge.hpp, docs/tfa.md "Chirped frame fits"); the default is the stationary
+// frame model.
 // --spectrogram writes CSV rows t_s,f_hz,channel,power,t_reassigned_s,f_reassigned_hz for the bins
 // within 60 dB of the map's peak (scripts/plot_spectrogram.py draws it with the ridges).
 // Exit 2 on bad input, 1 when frames cannot be resolved; no file is written then.
@@ -449,8 +454,9 @@ void add_tfa_command(CLI::App& app) {
   sub->add_option("--max-jump-hz", o.ridges.max_jump_hz, "largest ridge jump per frame, Hz")
       ->capture_default_str();
   sub->add_option("--chirp", o.ridges.fit_chirp,
-                  "spectrogram frame fits with each mode's chirp rate (d lambda/dt, 1/s^2) "
-                  "fitted: true or false")
+                  "spectrogram method: frame fits with each mode's chirp rate (d lambda/dt, "
+                  "1/s^2) fitted where the data ask for it, then held at the slopes of the "
+                  "tracks (docs/tfa.md); true or false")
       ->capture_default_str();
   sub->add_option("--sg-window-s", o.modal.smoothing.window_s, "Savitzky-Golay window, s")
       ->capture_default_str();
