@@ -912,6 +912,30 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
         if (!(r.anr_db(m, j) >= options.anr_threshold_db)) r.valid(m, j) = false;
       }
   }
+  if (options.fit_chirp && r.anr_db.rows() == frames) {
+    // A free response's modes decay: once a mode's amplitude-to-noise ratio has fallen below the
+    // threshold after its peak, its later frames are noise, whatever their own ratio (with chirps
+    // only, so that the stationary default's output is unchanged; the chirped chains otherwise
+    // left a few frames of a mode sunk in the noise valid, and the bridge between them sent the
+    // mode anywhere: docs/tfa.md).
+    for (int j = 0; j < n; ++j) {
+      int peak = -1;
+      for (int m = 0; m < frames; ++m) {
+        if (std::isfinite(r.anr_db(m, j)) && (peak < 0 || r.anr_db(m, j) > r.anr_db(peak, j))) {
+          peak = m;
+        }
+      }
+      if (peak < 0) continue;
+      int end = frames;
+      for (int m = peak; m < frames; ++m) {
+        if (std::isfinite(r.anr_db(m, j)) && r.anr_db(m, j) < options.anr_threshold_db) {
+          end = m;
+          break;
+        }
+      }
+      for (int m = end; m < frames; ++m) r.valid(m, j) = false;
+    }
+  }
   const int outlier_half_window =
       std::max(1, static_cast<int>(std::lround(0.5 * options.outlier_window_s / sg.hop_s)));
   flag_outliers(r, outlier_half_window, options.outlier_hz);

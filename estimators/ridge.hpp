@@ -79,7 +79,10 @@ struct RidgeResult {
   /// onto or past another mode) and no mode's own part of the frame's STFT at the fit bins
   /// exceeds the STFT's energy there by more than max_mode_to_data_db (modes with large,
   /// cancelling amplitudes; these two make the frame invalid for every mode) and it
-  /// is within outlier_hz of the median of the mode's valid fits around it. The values of an
+  /// is within outlier_hz of the median of the mode's valid fits around it. With fit_chirp also:
+  /// the frame's chirped model does not miss the data (max_misfit_fraction, max_misfit_noise;
+  /// invalid for every mode), and the mode's amplitude-to-noise ratio has not yet fallen below
+  /// anr_threshold_db after its peak (a decayed mode does not come back). The values of an
   /// invalid frame, and of a frame whose fit failed, are bridged from the valid frames around it
   /// (omega, alpha and ln A linear, the phase along the integral of omega; continued from the
   /// nearest valid frame at the ends), so that stage 4's smoothing does not spread a bad fit.
@@ -95,7 +98,13 @@ struct RidgeResult {
 /// fitted by least squares on the bins near the ridges with the exact window transform W, the
 /// other components are subtracted from X_h and X_dh at each ridge bin, and the reassignment
 /// equation Wd(s) / W(s) = X_dh / X_h is solved for lambda = s + i nu by Newton's method. For a sum
-/// of n damped exponentials this recovers frequencies, decay rates and amplitudes exactly.
+/// of n damped exponentials this recovers frequencies, decay rates and amplitudes exactly. With
+/// fit_chirp the frame model gives each mode a chirp rate g_j (lambda_j + g_j u at offset u from
+/// the frame centre): pass 1 on frames chirp_track_step_s apart keeps the fitted rates where they
+/// lower the misfit by more than chirp_min_gain noise variances per unknown, the fit bins following
+/// the fits; pass 2 refits those frames with the rates held at the smoothed slopes of pass 1's
+/// tracks; the frames between carry the nearest fit's model (docs/tfa.md, "Chirped frame fits").
+/// For a sum of n damped exponentials with lambdas linear in time this is exact.
 /// Throws InputError on options out of range (modes < 1, band without n bins).
 RidgeResult track_ridges(const ReassignedSpectrogram& spectrogram, const RidgeOptions& options);
 

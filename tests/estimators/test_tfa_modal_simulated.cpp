@@ -203,7 +203,7 @@ BOOST_AUTO_TEST_CASE(spectrogram_with_chirped_frame_fits_meets_issue_6s_k11_targ
   // Issue 6's target for the spectrogram method: k11 within 10 % over 2.6-4.5 s for constant and
   // sigmoid K on the simulator's posture trials, noise-free and at 20 dB (noise seed 1), here at
   // 45, 90 and 135 degrees, with the chirped frame model (RidgeOptions::fit_chirp, `--chirp
-  // true`; measured over seeds 1-6 and 0-135 degrees: at most 8.6 %, docs/tfa.md). The
+  // true`; measured over seeds 1-6 and 0-135 degrees: at most 8.5 %, docs/tfa.md). The
   // stationary frame model (the default) lags the sigmoid's sweep: at 45 degrees 20 dB it misses
   // the target (17.7 % on average over seeds 1-6); checked too, so that the comparison stays
   // honest.
