@@ -136,6 +136,25 @@ namespace {
 /// Four doubles as one value (GCC/Clang vector extension; two SSE2 registers, one AVX register):
 /// keeps the sums of SampledWindow::transform in registers.
 typedef double Lanes __attribute__((vector_size(4 * sizeof(double))));
+
+/// exp(s (lo + q) dt), q = 0..3, as four lanes (re, im), the ratio exp(s dt) of consecutive
+/// terms and the step exp(4 s dt) of each lane: four interleaved geometric sequences.
+struct GeometricLanes {
+  Lanes re, im;
+  std::complex<double> ratio, ratio4;
+};
+
+inline GeometricLanes geometric_lanes(std::complex<double> s, double step_s, int lo) {
+  GeometricLanes g;
+  g.ratio = std::exp(s * step_s);
+  g.ratio4 = (g.ratio * g.ratio) * (g.ratio * g.ratio);
+  std::complex<double> e = std::exp(s * (lo * step_s));
+  for (int q = 0; q < 4; ++q, e *= g.ratio) {
+    g.re[q] = e.real();
+    g.im[q] = e.imag();
+  }
+  return g;
+}
 }  // namespace
 
 // Built for AVX2 too (chosen at load time on machines that have it): the four-lane sums are one
@@ -148,14 +167,10 @@ SampledWindow::Transform SampledWindow::transform(const Cut& cut, double step_s,
   // multiply chains, real arithmetic in four lanes: this sum is the spectrogram method's inner
   // loop), then the remaining 0-3 terms. Lane q sums the terms i = q mod 4.
   using cd = std::complex<double>;
-  const cd ratio = std::exp(s * step_s);
-  const cd ratio4 = (ratio * ratio) * (ratio * ratio);
-  Lanes er, ei;
-  cd e = std::exp(s * (cut.lo * step_s));
-  for (int q = 0; q < 4; ++q, e *= ratio) {
-    er[q] = e.real();
-    ei[q] = e.imag();
-  }
+  const GeometricLanes lanes = geometric_lanes(s, step_s, cut.lo);
+  const cd ratio = lanes.ratio, ratio4 = lanes.ratio4;
+  Lanes er = lanes.re, ei = lanes.im;
+  cd e;
   // Real and imaginary parts of the sums with the windows h, dh, t h and t dh.
   Lanes h_re = {}, h_im = {}, dh_re = {}, dh_im = {}, th_re = {}, th_im = {}, tdh_re = {},
         tdh_im = {};
@@ -238,14 +253,10 @@ __attribute__((target_clones("avx2", "default")))
 void chirped_sums(const SampledWindow::ChirpedCut& cut, double step_s, std::complex<double> s,
                   std::complex<double>* out) {
   using cd = std::complex<double>;
-  const cd ratio = std::exp(s * step_s);
-  const cd ratio4 = (ratio * ratio) * (ratio * ratio);
-  Lanes er, ei;
-  cd e = std::exp(s * (cut.lo * step_s));
-  for (int q = 0; q < 4; ++q, e *= ratio) {
-    er[q] = e.real();
-    ei[q] = e.imag();
-  }
+  const GeometricLanes lanes = geometric_lanes(s, step_s, cut.lo);
+  const cd ratio = lanes.ratio, ratio4 = lanes.ratio4;
+  Lanes er = lanes.re, ei = lanes.im;
+  cd e;
   Lanes acc_re[kWindows] = {}, acc_im[kWindows] = {};
   const int len = static_cast<int>(cut.re.rows());
   const double r4r = ratio4.real(), r4i = ratio4.imag();
