@@ -310,7 +310,9 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centre
   // The chirped windows of each mode: once for held chirp rates, at every evaluation for fitted.
   std::vector<SampledWindow::ChirpedCut> chirped_cuts(chirped ? n : 0);
   if (chirp_mode == Chirp::held) {
-    for (int j = 0; j < n; ++j) chirped_cuts[j] = SampledWindow::chirped(cut, dt, fit.chirp[j], false);
+    for (int j = 0; j < n; ++j) {
+      chirped_cuts[j] = SampledWindow::chirped(cut, dt, fit.chirp[j], false);
+    }
   }
   // Fills f.transforms for f.lambda (unless they are already those of this cut and these bins),
   // then the residual and the Jacobian.
@@ -320,7 +322,9 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centre
         f.transforms_bins != bins) {
       f.transforms.resize(nb * n * images);
       if (chirp) {  // the chirp rates are unknowns: their windows change with every step
-        for (int j = 0; j < n; ++j) chirped_cuts[j] = SampledWindow::chirped(cut, dt, f.chirp[j], true);
+        for (int j = 0; j < n; ++j) {
+          chirped_cuts[j] = SampledWindow::chirped(cut, dt, f.chirp[j], true);
+        }
       }
       for (int i = 0; i < nb; ++i) {
         const double nu = 2.0 * M_PI * sg.frequency_hz(bins[i]);
@@ -463,8 +467,9 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centre
     // White noise of variance S_cc per sample: E|X_h|^2 = S_cc sum h^2, E|X_dh|^2 = S_cc sum dh^2
     // (weighted by wd_weight^2), half of each in the real and the imaginary row.
     const double trace = ctx.options.noise_covariance.trace();
-    fit.noise_per_row = trace * (cut.h.squaredNorm() + wd_weight * wd_weight * cut.dh.squaredNorm()) /
-                        (4.0 * channels);
+    fit.noise_per_row =
+        trace * (cut.h.squaredNorm() + wd_weight * wd_weight * cut.dh.squaredNorm()) /
+        (4.0 * channels);
   }
   return std::isfinite(cost);
 }
@@ -503,15 +508,17 @@ bool degenerate_fit(const FrameContext& ctx, int m, const FrameFit& fit) {
   return std::any_of(own.begin(), own.end(), [&](double e) { return e > ratio * data; });
 }
 
-/// Pass 2 of the frame fits. Pass 1 fitted the frames of `grid` (every stride-th frame), each
-/// with chirp rates or without (take_chirped in track_ridges). Here each mode's chirp rate is held
-/// at the slope of its pass-1 lambda track (Savitzky-Golay, order 2, over chirp_slope_window_s;
-/// grid frames whose fit failed or is degenerate interpolated linearly between their neighbours),
-/// interpolated to every frame, and every frame's lambdas and amplitudes are fitted, starting from
-/// the nearest good pass-1 fit moved along its lambdas and the held rates. The per-frame chirp
-/// rates of pass 1 follow the noise where the data barely ask for them; their smoothed track does
-/// not, and it reaches the frames of cut windows, where pass 1 fits none. The frames are
-/// independent here: run in parallel, each with its own result.
+/// Pass 2 of the chirped frame fits. Pass 1 fitted the frames of `grid` (every stride-th frame),
+/// each with chirp rates or without (take_chirped in track_ridges). Here each mode's chirp rate is
+/// held at the slope of its pass-1 lambda track over the full-window fits (Savitzky-Golay, order
+/// 2, over chirp_slope_window_s; failed or degenerate fits interpolated linearly between their
+/// neighbours; beyond the first and last full-window fit, the slope there), and every grid frame's
+/// lambdas and amplitudes are refitted from the nearest good full-window pass-1 fit moved along
+/// its lambdas and the held rates; then flagged (degenerate_fit, and `misfit`: the model misses
+/// the data). The per-frame chirp rates of pass 1 follow the noise where the data barely ask for
+/// them; their smoothed track does not, and it reaches the frames of cut windows, where pass 1
+/// fits none. The grid frames are independent here: run in parallel, each into its own slot. Every
+/// other frame then carries the nearest grid frame's fit moved to its centre.
 void hold_chirp_rates(const FrameContext& ctx, std::vector<FrameFit>& fits,
                       const std::vector<int>& grid, int stride) {
   const ReassignedSpectrogram& sg = ctx.sg;
@@ -604,7 +611,8 @@ void hold_chirp_rates(const FrameContext& ctx, std::vector<FrameFit>& fits,
     if (fit.ok) {
       const double shift_s = (m - grid[p]) * sg.hop_s;
       for (int j = 0; j < n; ++j) {
-        fit.coef.row(j) *= std::exp(fit.lambda[j] * shift_s + 0.5 * fit.chirp[j] * shift_s * shift_s);
+        fit.coef.row(j) *=
+            std::exp(fit.lambda[j] * shift_s + 0.5 * fit.chirp[j] * shift_s * shift_s);
         fit.lambda[j] += fit.chirp[j] * shift_s;
       }
     }
@@ -758,11 +766,11 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
            options.chirp_min_gain * 2.0 * n * chirped.noise_per_row;
   };
   // Pass 1. A frame starts from its neighbour's solution moved by the hop(s) between them along
-  // its lambdas and chirp rates, fitted on the bins around the neighbour's frequencies (the
-  // ridges' bins seed only fits without a neighbour), or from the ridges' own starting values
-  // when there is none or it fails. A degenerate fit is kept, and flagged: started afresh from the
-  // ridge it lands elsewhere (measured on the simulator's posture trials: it rescued some runs and
-  // broke others; docs/tfa.md).
+  // its lambdas (and chirp rates), or from the ridges' own starting values when there is none or
+  // it fails. The fit bins are those around the ridges; with chirps, around the neighbour's
+  // frequencies (the ridges' bins then seed only fits without a neighbour). A degenerate fit is
+  // kept, and flagged: started afresh from the ridge it lands elsewhere (measured on the
+  // simulator's posture trials: it rescued some runs and broke others; docs/tfa.md).
   auto fit_frame = [&](int m, const FrameFit* warm, double shift_s) {
     std::vector<int> centres(n);
     FrameFit fit;
@@ -802,11 +810,12 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
     fit.degenerate = ok && degenerate_fit(ctx, m, fit);
     return fit;
   };
-  // The start: of the first frame with a full window (the modes are strongest just after the
-  // pulse), the middle frame and the frame halfway between, the one whose fit is not degenerate
-  // and misses the smallest part of its data (relative_cost); if all are degenerate, the frame
-  // nearest the middle (later first) whose fit is not. The chains then follow the modes both
-  // ways, each frame starting from the last frame of its chain whose fit is not degenerate: two
+  // The start: the middle frame (full windows, best conditioned) or, with chirps, of the first
+  // frame with a full window (the modes are strongest just after the pulse), the middle frame and
+  // the frame halfway between, the one whose fit is not degenerate and misses the smallest part of
+  // its data (relative_cost); if that is degenerate, the frame nearest the middle (later first)
+  // whose fit is not. The chains then follow the modes both ways, each frame starting from its
+  // neighbour (with chirps: the last frame of its chain whose fit is not degenerate): two
   // independent chains, run in parallel. A chain started from a degenerate fit would carry it
   // along (the constant-K trial at 45 degrees, 20 dB, seed 6: two tracks on the slow mode from
   // the middle frame on, k11 off by 122 %); one started in the middle of a fast stiffening lost

@@ -289,9 +289,11 @@ SampledWindow::Transform SampledWindow::transform(const ChirpedCut& cut, double 
                                                   std::complex<double> s, bool conjugate) {
   std::complex<double> sums[6] = {};
   if (cut.windows == 6) {
-    conjugate ? chirped_sums<6, -1>(cut, step_s, s, sums) : chirped_sums<6, 1>(cut, step_s, s, sums);
+    conjugate ? chirped_sums<6, -1>(cut, step_s, s, sums)
+              : chirped_sums<6, 1>(cut, step_s, s, sums);
   } else {
-    conjugate ? chirped_sums<4, -1>(cut, step_s, s, sums) : chirped_sums<4, 1>(cut, step_s, s, sums);
+    conjugate ? chirped_sums<4, -1>(cut, step_s, s, sums)
+              : chirped_sums<4, 1>(cut, step_s, s, sums);
   }
   return Transform{sums[0], sums[1], sums[2], sums[3], sums[4], sums[5]};
 }

@@ -194,7 +194,9 @@ BOOST_AUTO_TEST_CASE(chirped_window_transforms_are_the_sums_they_stand_for) {
     const est::SampledWindow::Transform t =
         est::SampledWindow::transform(est::SampledWindow::chirped(cut, dt, g, true), dt, s);
     const std::complex<double> got[6] = {t.w, t.wd, t.wt, t.wdt, t.wtt, t.wdtt};
-    for (int k = 0; k < 6; ++k) BOOST_CHECK_SMALL(std::abs(got[k] - sums[k]) / std::abs(sums[k]), 1e-11);
+    for (int k = 0; k < 6; ++k) {
+      BOOST_CHECK_SMALL(std::abs(got[k] - sums[k]) / std::abs(sums[k]), 1e-11);
+    }
     const est::SampledWindow::Transform c = est::SampledWindow::transform(
         est::SampledWindow::chirped(cut, dt, g, false), dt, std::conj(s), true);
     const est::SampledWindow::Transform d = est::SampledWindow::transform(

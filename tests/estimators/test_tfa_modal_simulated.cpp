@@ -219,7 +219,8 @@ BOOST_AUTO_TEST_CASE(spectrogram_with_chirped_frame_fits_meets_issue_6s_k11_targ
             snr, 1, chirped);
         BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
         const double k11 = percent_rms_error(c, false, 0, 0, 2.6, 4.5);
-        BOOST_TEST_MESSAGE("spectrogram, chirped, " << (profile == m::ProfileKind::constant ? "constant" : "sigmoid") << ", " << direction
+        const char* name = profile == m::ProfileKind::constant ? "constant" : "sigmoid";
+        BOOST_TEST_MESSAGE("spectrogram, chirped, " << name << ", " << direction
                                                    << " deg, " << snr << " dB:" << report(c));
         BOOST_CHECK_LE(k11, 10.0);
       }
