@@ -279,7 +279,8 @@ enum class Chirp { none, fitted, held };
 /// +- fit_half_width_bins) in all channels: unknowns Re/Im lambda_j, Re/Im c_jk and, with
 /// Chirp::fitted, Re/Im g_j, derivatives from the window transforms (dW/ds = Wt, dWd/ds = Wdt,
 /// dW/dg = Wtt / 2, dWd/dg = Wdtt / 2). X_dh is weighted by T / (2 pi) to match the scale of X_h.
-/// Leaves the final sum of squares, its part of the data and the noise per residual in `fit`.
+/// Leaves the final sum of squares in `fit` and, with fit_chirp, its part of the data and the
+/// noise per residual.
 bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centres, FrameFit& fit,
                   Chirp chirp_mode) {
   const bool chirp = chirp_mode == Chirp::fitted;    // chirp rates among the unknowns
@@ -453,6 +454,8 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centre
     cost = trial_cost;
     if (previous - cost <= 1e-14 * previous || relative_step <= 1e-6) break;
   }
+  fit.cost = cost;
+  if (!ctx.options.fit_chirp) return std::isfinite(cost);  // the rest serves the chirped fits
   double data = 0.0;
   for (int i = 0; i < nb; ++i) {
     for (int c = 0; c < channels; ++c) {
@@ -461,7 +464,6 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centre
     }
   }
   fit.relative_cost = data > 0.0 ? cost / data : std::numeric_limits<double>::infinity();
-  fit.cost = cost;
   fit.noise_per_row = 0.0;
   if (ctx.options.noise_covariance.rows() == channels) {
     // White noise of variance S_cc per sample: E|X_h|^2 = S_cc sum h^2, E|X_dh|^2 = S_cc sum dh^2
