@@ -10,6 +10,7 @@
 // (fitting/tfa_fit.hpp). A fit that does not converge writes no file and exits 1.
 
 #include <cmath>
+#include <iostream>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -97,6 +98,12 @@ void run_tfa_fit(const FitArgs& a) {
     std::tie(o.from_s, o.to_s) = parse_range(a.interval, "--interval", "s", false);
   }
   const fitting::TfaTarget target = fitting::read_tfa_json(a.tfa);
+  if (o.model == fitting::LumpedModel::duffing && target.chirped_frames) {
+    std::cerr << "stiffid fit: warning: " << a.tfa
+              << " comes from the spectrogram's chirped frame fits (tfa --chirp true); the "
+                 "Duffing backbone was validated on the default stationary ones, and on the "
+                 "simulator's Duffing trial B moved by 33-39 % with chirps (docs/fitting.md)\n";
+  }
   const fitting::TfaFitResult r = fitting::fit_tfa(target, o);
   if (!r.fit.status.ok) throw NumericalFailure(a.tfa + ": " + r.fit.status.message);
   data::write_json(a.out, fitting::to_json(r));

@@ -72,6 +72,10 @@ TfaTarget read_tfa_json(const std::string& path) {
                      "from version 0.1.0 on: re-run stiffid tfa)");
   }
   t.inertia_kg_m2 = read_track(j, "M_kg_m2", path, n, frames);
+  if (j.contains("options") && j["options"].is_object() && j["options"].contains("chirp")) {
+    const nlohmann::json& chirp = j["options"]["chirp"];
+    t.chirped_frames = chirp.is_boolean() && chirp.get<bool>();
+  }
   t.valid.assign(frames, true);
   if (j.contains("valid")) {  // [j][T], one series per mode
     const nlohmann::json& v = j.at("valid");

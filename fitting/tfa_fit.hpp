@@ -70,11 +70,13 @@ struct TfaTarget {
   Eigen::MatrixXd envelope;                      ///< (T x n) a_j(t), amplitude of the normalized
                                                  ///< modal coordinate q_j, sqrt(kg) m rad (0 x 0
                                                  ///< when the file has none)
+  bool chirped_frames = false;  ///< made with the spectrogram's chirped frame fits ("options":
+                                ///< {"chirp": true}), which move the Duffing backbone's B
 };
 
 /// Reads the JSON of `stiffid tfa` (keys t_s, K_nm_per_rad, C_nms_per_rad, M_kg_m2 as [r][c][T],
-/// optional K_valid [T], valid [j][T], eigenvectors [r][c][T], normalized_force.envelope [j][T];
-/// null entries read as NaN). Throws InputError naming the file and key on anything missing or
+/// optional K_valid [T], valid [j][T], eigenvectors [r][c][T], normalized_force.envelope [j][T],
+/// options.chirp; null entries read as NaN). Throws InputError naming the file and key on anything missing or
 /// malformed.
 TfaTarget read_tfa_json(const std::string& path);
 
