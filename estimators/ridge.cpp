@@ -164,8 +164,27 @@ struct FrameFit {
   double relative_cost = std::numeric_limits<double>::infinity();
   double cost = std::numeric_limits<double>::infinity();  ///< the final sum of squares
   double noise_per_row = 0.0;  ///< expected noise variance of one real residual (0: unknown)
-  std::vector<int> centres;    ///< the bins the fit bins were taken around
 };
+
+/// Moves a fit by shift_s along its model: each mode's complex amplitudes by
+/// exp(lambda_j shift + g_j shift^2 / 2) and lambda_j by g_j shift (g_j = chirp[j], 0 when the fit
+/// has none), so that it describes the frame centred shift_s later.
+void move_fit(FrameFit& fit, double shift_s) {
+  for (std::size_t j = 0; j < fit.lambda.size(); ++j) {
+    const cd g = fit.chirp.empty() ? cd(0.0) : fit.chirp[j];
+    fit.coef.row(static_cast<Eigen::Index>(j)) *=
+        std::exp(fit.lambda[j] * shift_s + 0.5 * g * shift_s * shift_s);
+    fit.lambda[j] += g * shift_s;
+  }
+}
+
+/// Whether frame m's window is long enough for pass 1 to fit chirp rates (at least
+/// chirp_min_window_fraction of the full length; in windows cut short at the ends of the free
+/// response they are ill-determined).
+bool chirp_window(const ReassignedSpectrogram& sg, const RidgeOptions& options, int m) {
+  return sg.offset_hi(m) - sg.offset_lo(m) >=
+         options.chirp_min_window_fraction * 2 * sg.half_length;
+}
 
 /// Least-squares complex amplitudes for given lambdas on `bins` (X_h only).
 bool fit_amplitudes(const FrameContext& ctx, int m, const SampledWindow::Cut& cut,
@@ -302,7 +321,6 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centre
   const double wd_weight = (cut.hi - cut.lo) * dt / (2.0 * M_PI);
   const int nl = chirp ? 4 : 2;  // real unknowns per mode: lambda (and its chirp rate)
   if (static_cast<int>(fit.chirp.size()) != n || !chirped) fit.chirp.assign(n, cd(0.0));
-  fit.centres = centres;
   const double half_window_s = 0.5 * (cut.hi - cut.lo) * dt;
   const int unknowns = nl * n + 2 * n * channels;
   const int rows = 2 * 2 * nb * channels;  // (h, dh) x bins x channels, real and imaginary
@@ -526,14 +544,12 @@ void hold_chirp_rates(const FrameContext& ctx, std::vector<FrameFit>& fits,
   const ReassignedSpectrogram& sg = ctx.sg;
   const int frames = static_cast<int>(fits.size()), n = ctx.n;
   const int points = static_cast<int>(grid.size());
-  const int full_length = 2 * sg.half_length;
   std::vector<int> good;  // indices into grid: fits not failed nor degenerate
   std::vector<int> full;  // those of them with full windows (pass 1 fitted chirp rates there)
   for (int p = 0; p < points; ++p) {
     if (!fits[grid[p]].ok || fits[grid[p]].degenerate) continue;
     good.push_back(p);
-    const SampledWindow::Cut cut = sg.frame_window(grid[p]);
-    if (cut.hi - cut.lo >= ctx.options.chirp_min_window_fraction * full_length) full.push_back(p);
+    if (chirp_window(sg, ctx.options, grid[p])) full.push_back(p);
   }
   if (good.empty()) return;
   // The slopes of the lambda tracks of the full-window fits between the first and the last of
@@ -580,15 +596,10 @@ void hold_chirp_rates(const FrameContext& ctx, std::vector<FrameFit>& fits,
     int nearest = after == starts.end() ? starts.back() : *after;
     if (after != starts.begin() && p - *(after - 1) <= nearest - p) nearest = *(after - 1);
     FrameFit fit = fits[grid[nearest]];
-    const double shift_s = (grid[p] - grid[nearest]) * sg.hop_s;
+    for (int j = 0; j < n; ++j) fit.chirp[j] = cd(slope(p, 2 * j), slope(p, 2 * j + 1));
+    move_fit(fit, (grid[p] - grid[nearest]) * sg.hop_s);
     std::vector<int> centres(n);
-    for (int j = 0; j < n; ++j) {
-      const cd g(slope(p, 2 * j), slope(p, 2 * j + 1));
-      fit.coef.row(j) *= std::exp(fit.lambda[j] * shift_s + 0.5 * g * shift_s * shift_s);
-      fit.lambda[j] += g * shift_s;
-      fit.chirp[j] = g;
-      centres[j] = nearest_bin(sg, fit.lambda[j].imag() / (2.0 * M_PI));
-    }
+    for (int j = 0; j < n; ++j) centres[j] = nearest_bin(sg, fit.lambda[j].imag() / (2.0 * M_PI));
     fit.transforms.clear();
     fit.ok = gauss_newton(ctx, grid[p], centres, fit, Chirp::held);
     fit.degenerate = fit.ok && degenerate_fit(ctx, grid[p], fit);
@@ -610,14 +621,7 @@ void hold_chirp_rates(const FrameContext& ctx, std::vector<FrameFit>& fits,
     if (grid[p] == m) continue;
     FrameFit fit = fits[grid[p]];
     fit.transforms.clear();
-    if (fit.ok) {
-      const double shift_s = (m - grid[p]) * sg.hop_s;
-      for (int j = 0; j < n; ++j) {
-        fit.coef.row(j) *=
-            std::exp(fit.lambda[j] * shift_s + 0.5 * fit.chirp[j] * shift_s * shift_s);
-        fit.lambda[j] += fit.chirp[j] * shift_s;
-      }
-    }
+    if (fit.ok) move_fit(fit, (m - grid[p]) * sg.hop_s);
     fits[m] = std::move(fit);
   }
 }
@@ -750,13 +754,6 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
 
   FrameContext ctx{sg, options, n, channels, !sg.analytic};
   std::vector<FrameFit> fits(frames);
-  const int full_length = 2 * sg.half_length;
-  // Chirp rates are fitted only where the window is long enough to show them: in windows cut
-  // short at the ends of the free response they are ill-determined.
-  auto chirp_allowed = [&](int m) {
-    const SampledWindow::Cut cut = sg.frame_window(m);
-    return options.fit_chirp && cut.hi - cut.lo >= options.chirp_min_window_fraction * full_length;
-  };
   // The chirped fit replaces the stationary one when it lowers the sum of squares by more than
   // chirp_min_gain expected noise variances per added unknown (2 per mode): a test of whether
   // the frame's data ask for the chirp rates. Without a noise level, whenever it lowers it.
@@ -777,13 +774,11 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
     std::vector<int> centres(n);
     FrameFit fit;
     bool ok = false;
-    const bool chirp = chirp_allowed(m);
+    const bool chirp = options.fit_chirp && chirp_window(sg, options, m);
     if (warm != nullptr && warm->ok) {
       FrameFit moved = *warm;
+      move_fit(moved, shift_s);
       for (int j = 0; j < n; ++j) {
-        const cd g = moved.chirp.empty() ? cd(0.0) : moved.chirp[j];
-        moved.coef.row(j) *= std::exp(moved.lambda[j] * shift_s + 0.5 * g * shift_s * shift_s);
-        moved.lambda[j] += g * shift_s;
         centres[j] = options.fit_chirp ? nearest_bin(sg, moved.lambda[j].imag() / (2.0 * M_PI))
                                        : r.bin(m, j);
       }
@@ -827,8 +822,7 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
   if (options.fit_chirp) {
     int first_full = mid;
     for (int m = 0; m < frames; ++m) {
-      const SampledWindow::Cut cut = sg.frame_window(m);
-      if (cut.hi - cut.lo >= full_length) {
+      if (sg.offset_lo(m) == -sg.half_length && sg.offset_hi(m) == sg.half_length) {
         first_full = m;
         break;
       }

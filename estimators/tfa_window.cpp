@@ -221,7 +221,6 @@ SampledWindow::ChirpedCut SampledWindow::chirped(const Cut& cut, double step_s,
   using cd = std::complex<double>;
   ChirpedCut c;
   c.lo = cut.lo;
-  c.hi = cut.hi;
   c.windows = moments ? 6 : 4;
   const int len = static_cast<int>(cut.h.size());
   c.re.resize(len, c.windows);
@@ -234,7 +233,8 @@ SampledWindow::ChirpedCut SampledWindow::chirped(const Cut& cut, double step_s,
   const cd ratio_step = std::exp(g * step_s * step_s);
   for (int i = 0; i < len; ++i) {
     const double u = (cut.lo + i) * step_s;
-    const double w[6] = {cut.h(i), cut.dh(i), cut.th(i), cut.tdh(i), u * cut.th(i), u * cut.tdh(i)};
+    const double w[6] = {cut.h(i),  cut.dh(i),      cut.th(i),
+                         cut.tdh(i), u * cut.th(i), u * cut.tdh(i)};
     for (int k = 0; k < c.windows; ++k) {
       c.re(i, k) = w[k] * e.real();
       c.im(i, k) = w[k] * e.imag();

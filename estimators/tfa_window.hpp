@@ -87,7 +87,7 @@ class SampledWindow {
   /// frequency, imaginary part): complex windows h, dh, t h, t dh and, with `moments`, t^2 h and
   /// t^2 dh, as real and imaginary parts.
   struct ChirpedCut {
-    int lo = 0, hi = 0;
+    int lo = 0;              ///< first window offset (Cut::lo)
     int windows = 4;         ///< 4, or 6 with the second moments
     Eigen::MatrixXd re, im;  ///< (length x windows): h, dh, t h, t dh[, t^2 h, t^2 dh]
   };

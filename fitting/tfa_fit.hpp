@@ -76,8 +76,8 @@ struct TfaTarget {
 
 /// Reads the JSON of `stiffid tfa` (keys t_s, K_nm_per_rad, C_nms_per_rad, M_kg_m2 as [r][c][T],
 /// optional K_valid [T], valid [j][T], eigenvectors [r][c][T], normalized_force.envelope [j][T],
-/// options.chirp; null entries read as NaN). Throws InputError naming the file and key on anything missing or
-/// malformed.
+/// options.chirp; null entries read as NaN). Throws InputError naming the file and key on
+/// anything missing or malformed.
 TfaTarget read_tfa_json(const std::string& path);
 
 struct TfaFitOptions {
