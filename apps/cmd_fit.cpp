@@ -100,9 +100,10 @@ void run_tfa_fit(const FitArgs& a) {
   const fitting::TfaTarget target = fitting::read_tfa_json(a.tfa);
   if (o.model == fitting::LumpedModel::duffing && target.chirped_frames) {
     std::cerr << "stiffid fit: warning: " << a.tfa
-              << " comes from the spectrogram's chirped frame fits (tfa --chirp true); the "
-                 "Duffing backbone was validated on the default stationary ones, and on the "
-                 "simulator's Duffing trial B moved by 33-39 % with chirps (docs/fitting.md)\n";
+              << " comes from the spectrogram's chirped frame fits (the default of tfa "
+                 "--method spectrogram); the Duffing backbone was validated on its stationary "
+                 "ones (tfa --chirp false), and on the simulator's Duffing trial B moved by "
+                 "33-39 % with chirps (docs/fitting.md)\n";
   }
   const fitting::TfaFitResult r = fitting::fit_tfa(target, o);
   if (!r.fit.status.ok) throw NumericalFailure(a.tfa + ": " + r.fit.status.message);

@@ -292,6 +292,7 @@ void run(TfaCommandOptions cli) {
                            {"jump_penalty_per_hz", o.ridges.jump_penalty_per_hz},
                            {"max_jump_hz", o.ridges.max_jump_hz},
                            {"chirp", o.ridges.fit_chirp},
+                           {"anr_floor_db", o.ridges.anr_floor_db},
                            {"sg_window_s", o.modal.smoothing.window_s},
                            {"sg_order", o.modal.smoothing.polynomial_order},
                            {"analytic", o.deviation.analytic}});
@@ -455,7 +456,12 @@ void add_tfa_command(CLI::App& app) {
   sub->add_option("--chirp", o.ridges.fit_chirp,
                   "spectrogram method: frame fits with each mode's chirp rate (d lambda/dt, "
                   "1/s^2) fitted where the data ask for it, then held at the slopes of the "
-                  "tracks (docs/tfa.md); true or false")
+                  "tracks (docs/tfa.md); true (the default) or false: the stationary frame "
+                  "model, each mode's lambda constant through the window")
+      ->capture_default_str();
+  sub->add_option("--anr-floor-db", o.ridges.anr_floor_db,
+                  "spectrogram method: the noise in the amplitude-to-noise ratio is at least this "
+                  "far below the strongest mode's peak power, dB (noise-free data)")
       ->capture_default_str();
   sub->add_option("--sg-window-s", o.modal.smoothing.window_s, "Savitzky-Golay window, s")
       ->capture_default_str();

@@ -723,6 +723,10 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
   if (!(options.max_jump_hz > 0.0) || !(options.jump_penalty_per_hz >= 0.0)) {
     throw InputError("ridge tracking: max jump must be positive and the penalty >= 0");
   }
+  if (std::isnan(options.anr_floor_db)) {
+    throw InputError("ridge tracking: the amplitude-to-noise floor must be a number of dB (inf: "
+                     "no floor)");
+  }
   const double df = sg.sample_rate_hz / sg.fft_size;
   int band_lo = 0;
   while (band_lo < sg.bins() && sg.frequency_hz(band_lo) < options.min_frequency_hz - 1e-9) {
@@ -906,8 +910,21 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
     if (options.noise_covariance.rows() != channels || options.noise_covariance.cols() != channels)
       throw InputError("ridge tracking: the noise covariance must be " + std::to_string(channels) +
                        " x " + std::to_string(channels));
+    // The noise per channel is at least anr_floor_db below the strongest mode's peak power per
+    // channel over the frames valid so far (not the degenerate fits, whose cancelling amplitudes
+    // can be huge): noise-free data (a constant pre-onset record) would otherwise give every
+    // fitted mode, however small, a ratio of thousands of dB, and no frame would ever be below
+    // the threshold.
+    double peak_power = 0.0;
+    for (int j = 0; j < n; ++j)
+      for (int m = 0; m < frames; ++m) {
+        if (!r.valid(m, j)) continue;
+        const double p = 0.5 * r.amplitude_c[j].row(m).squaredNorm() / channels;
+        if (std::isfinite(p)) peak_power = std::max(peak_power, p);
+      }
+    const double floor = std::pow(10.0, -0.1 * options.anr_floor_db) * peak_power + 1e-300;
     const Eigen::LLT<Eigen::MatrixXcd> llt(options.noise_covariance.cast<cd>() +
-                                           1e-300 * Eigen::MatrixXcd::Identity(channels, channels));
+                                           floor * Eigen::MatrixXcd::Identity(channels, channels));
     r.anr_db.resize(frames, n);
     for (int j = 0; j < n; ++j)
       for (int m = 0; m < frames; ++m) {
@@ -920,7 +937,7 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
   if (options.fit_chirp && r.anr_db.rows() == frames) {
     // A free response's modes decay: once a mode's amplitude-to-noise ratio has fallen below the
     // threshold after its peak, its later frames are noise, whatever their own ratio (with chirps
-    // only, so that the stationary default's output is unchanged; the chirped chains otherwise
+    // only, so that the stationary fits' output is unchanged; the chirped chains otherwise
     // left a few frames of a mode sunk in the noise valid, and the bridge between them sent the
     // mode anywhere: docs/tfa.md).
     for (int j = 0; j < n; ++j) {

@@ -33,7 +33,11 @@ struct RidgeOptions {
                                        ///< channel units^2 (e.g. from before the onset); empty:
                                        ///< no amplitude-to-noise ratio, no such validity test
   double anr_threshold_db = 0.0;       ///< validity: amplitude-to-noise ratio at least this, dB
-  bool fit_chirp = false;              ///< frame model with chirps: each mode's lambda changes
+  double anr_floor_db = 100.0;         ///< the noise in the amplitude-to-noise ratio is at least
+                                       ///< this far below the strongest mode's peak power per
+                                       ///< channel, dB (noise-free data: a mode that has decayed
+                                       ///< by more than this is noise)
+  bool fit_chirp = true;               ///< frame model with chirps: each mode's lambda changes
                                        ///< linearly through the window (track_ridges)
   double chirp_min_gain = 30.0;        ///< pass 1 keeps a frame's chirped fit when it lowers the
                                        ///< sum of squares by more than this many expected noise
@@ -67,8 +71,9 @@ struct RidgeResult {
   std::vector<Eigen::MatrixXd> phase_rad;     ///< [n] of (T x C) phase of mode j in channel k
   std::vector<Eigen::MatrixXcd> amplitude_c;  ///< [n] of (T x C) complex amplitudes
   /// (T x n) amplitude-to-noise ratio of mode j at frame t, dB: 10 log10(a^H S^-1 a / 2), a the
-  /// mode's complex amplitudes in the channels and S the noise covariance (the mode's mean power
-  /// per sample over the noise, in whitened units, as the modal method's anr_db); empty without
+  /// mode's complex amplitudes in the channels and S the noise covariance plus the floor of
+  /// RidgeOptions::anr_floor_db on its diagonal (the mode's mean power per sample over the
+  /// noise, in whitened units, as the modal method's anr_db); empty without
   /// RidgeOptions::noise_covariance.
   Eigen::MatrixXd anr_db;
   /// (T x n) mode j resolved at frame t: the frame fit converged, its frequency lies inside the

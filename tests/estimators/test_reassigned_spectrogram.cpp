@@ -38,12 +38,16 @@ est::ReassignedSpectrogram paper_window_spectrogram(const est::TfSignal& s) {
   return est::reassigned_spectrogram(s, o);
 }
 
+/// The spectrogram of one decaying cosine, 4 s at 1 kHz, with the paper's window.
+est::ReassignedSpectrogram cosine_spectrogram(double f, double alpha, double a0, double phi) {
+  return paper_window_spectrogram(damped_cosines(1000.0, 4.0, {f}, {alpha}, {a0}, {phi}));
+}
+
 }  // namespace
 
 BOOST_AUTO_TEST_CASE(single_decaying_cosine_gives_exact_frequency_decay_and_amplitude) {
   const double f = 6.0, alpha = -1.5, a0 = 0.02, phi = 0.4;
-  const est::TfSignal s = damped_cosines(1000.0, 4.0, {f}, {alpha}, {a0}, {phi});
-  const est::ReassignedSpectrogram sg = paper_window_spectrogram(s);
+  const est::ReassignedSpectrogram sg = cosine_spectrogram(f, alpha, a0, phi);
   est::RidgeOptions ro;
   ro.modes = 1;
   const est::RidgeResult r = est::track_ridges(sg, ro);
@@ -68,8 +72,7 @@ BOOST_AUTO_TEST_CASE(a_mode_below_the_noise_is_flagged_by_its_amplitude_to_noise
   // is chosen so that it crosses 0 dB at t = 2 s. Frames after that are invalid, and bridged
   // (exactly, for a mode with constant parameters).
   const double f = 6.0, alpha = -1.5, a0 = 0.02, phi = 0.4, crossing_s = 2.0;
-  const est::TfSignal s = damped_cosines(1000.0, 4.0, {f}, {alpha}, {a0}, {phi});
-  const est::ReassignedSpectrogram sg = paper_window_spectrogram(s);
+  const est::ReassignedSpectrogram sg = cosine_spectrogram(f, alpha, a0, phi);
   est::RidgeOptions ro;
   ro.modes = 1;
   const double amplitude_at_crossing = a0 * std::exp(alpha * crossing_s);
@@ -91,6 +94,39 @@ BOOST_AUTO_TEST_CASE(a_mode_below_the_noise_is_flagged_by_its_amplitude_to_noise
   const est::RidgeResult without = est::track_ridges(sg, {.modes = 1});
   BOOST_CHECK_EQUAL(without.anr_db.size(), 0);
   BOOST_CHECK(without.valid.all());
+}
+
+BOOST_AUTO_TEST_CASE(noise_free_data_have_a_floored_amplitude_to_noise_ratio) {
+  // Noise-free data (a zero noise covariance, as from a constant pre-onset record): the noise is
+  // taken as anr_floor_db (100 dB) below the strongest mode's peak power, so the ratio is
+  // 100 dB + 20 log10(a(t) / a(t_peak)), exactly known for a decaying cosine whose peak is the
+  // first frame; it crosses 0 dB when the mode has decayed by 100 dB (2.30 s after the peak at
+  // 5 1/s), and the later frames are invalid. Without the floor the ratio is thousands of dB and
+  // a mode that has decayed by 170 dB is still "valid" (the scipy sharp-K posture fixture: the
+  // vanished slow mode's track sent k11 to 7342 % RMS).
+  const double f = 6.0, alpha = -5.0, a0 = 1.0, phi = 0.4;
+  const est::ReassignedSpectrogram sg = cosine_spectrogram(f, alpha, a0, phi);
+  est::RidgeOptions ro;
+  ro.modes = 1;
+  ro.noise_covariance = Eigen::MatrixXd::Zero(1, 1);
+  BOOST_REQUIRE_EQUAL(ro.anr_floor_db, 100.0);
+  const est::RidgeResult r = est::track_ridges(sg, ro);
+  BOOST_REQUIRE(r.status.ok);
+  BOOST_REQUIRE_EQUAL(r.anr_db.rows(), sg.frames());
+  const double t_peak = r.time_s(0), crossing_s = t_peak + 100.0 / (-alpha * 20.0 / std::log(10.0));
+  int flagged = 0;
+  for (int m = 0; m < sg.frames(); ++m) {
+    const double t = r.time_s(m);
+    BOOST_CHECK_SMALL(r.anr_db(m, 0) - (100.0 + 20.0 * std::log10(std::exp(alpha * (t - t_peak)))),
+                      1e-2);
+    if (std::abs(t - crossing_s) > 0.011) BOOST_CHECK_EQUAL(r.valid(m, 0), t < crossing_s);
+    flagged += r.valid(m, 0) ? 0 : 1;
+  }
+  BOOST_CHECK_GT(flagged, 0);
+  ro.anr_floor_db = HUGE_VAL;  // no floor
+  const est::RidgeResult unfloored = est::track_ridges(sg, ro);
+  BOOST_CHECK_GT(unfloored.anr_db.minCoeff(), 1000.0);
+  BOOST_CHECK(unfloored.valid.all());
 }
 
 BOOST_AUTO_TEST_CASE(decaying_cosine_in_a_cut_region_is_exact_up_to_the_cut) {
@@ -158,7 +194,8 @@ BOOST_AUTO_TEST_CASE(linear_chirp_reassigns_onto_its_instantaneous_frequency) {
   // (measured up to 0.020 Hz, 4 % of the 0.49 Hz bin). 0.03 Hz bounds it: 0.3 % of the 5-11 Hz
   // tracked. The chirped frame model (fit_chirp) is this signal: exact to round-off at every
   // frame, cut windows included.
-  const est::RidgeResult stationary = est::track_ridges(sg, {.modes = 1, .min_frequency_hz = 1.0});
+  const est::RidgeResult stationary =
+      est::track_ridges(sg, {.modes = 1, .min_frequency_hz = 1.0, .fit_chirp = false});
   const est::RidgeResult chirped =
       est::track_ridges(sg, {.modes = 1, .min_frequency_hz = 1.0, .fit_chirp = true});
   double worst_stationary = 0.0;
@@ -243,7 +280,7 @@ BOOST_AUTO_TEST_CASE(two_chirping_damped_modes_1_hz_apart_are_exact) {
   const est::ReassignedSpectrogram sg = paper_window_spectrogram(s);
   const est::RidgeResult r = est::track_ridges(sg, {.modes = 2, .fit_chirp = true});
   BOOST_REQUIRE(r.status.ok);
-  const est::RidgeResult stationary = est::track_ridges(sg, {.modes = 2});
+  const est::RidgeResult stationary = est::track_ridges(sg, {.modes = 2, .fit_chirp = false});
   double worst_stationary = 0.0;
   for (int m = 0; m < sg.frames(); ++m) {
     const double t = r.time_s(m);
@@ -329,8 +366,7 @@ BOOST_AUTO_TEST_CASE(invalid_frames_are_bridged_from_their_valid_neighbours) {
   // another mode) and flagged: the bridge restores them to the closed form, since omega, alpha
   // and ln A are linear in time and the phase follows omega.
   const double f = 6.0, alpha = -1.5, a0 = 0.02, phi = 0.4;
-  const est::TfSignal s = damped_cosines(1000.0, 4.0, {f}, {alpha}, {a0}, {phi});
-  const est::ReassignedSpectrogram sg = paper_window_spectrogram(s);
+  const est::ReassignedSpectrogram sg = cosine_spectrogram(f, alpha, a0, phi);
   est::RidgeResult r = est::track_ridges(sg, {.modes = 1});
   BOOST_REQUIRE(r.status.ok && r.valid.all());
   const est::RidgeResult exact = r;
@@ -376,4 +412,9 @@ BOOST_AUTO_TEST_CASE(bad_options_and_short_regions_are_input_errors) {
   BOOST_CHECK_THROW(est::TfWindow::parse("kaiser:x"), stiffid::InputError);
   BOOST_CHECK_THROW(est::TfWindow::parse("blackman"), stiffid::InputError);
   BOOST_CHECK(est::TfWindow::parse("gaussian:0.2").kind() == est::TfWindow::Kind::gaussian);
+  o.hop_s = 0.05;
+  const est::ReassignedSpectrogram sg = est::reassigned_spectrogram(s, o);
+  BOOST_CHECK_THROW(est::track_ridges(sg, {.modes = 0}), stiffid::InputError);
+  BOOST_CHECK_THROW(est::track_ridges(sg, {.modes = 1, .anr_floor_db = std::nan("")}),
+                    stiffid::InputError);
 }

@@ -88,8 +88,8 @@ BOOST_AUTO_TEST_CASE(constant_stiffness_noise_free_is_recovered_to_one_percent) 
   BOOST_CHECK_CLOSE(r.deviation.onset_s, 2.5, 1e-6);  // auto onset from fx, fy
   BOOST_TEST_MESSAGE("constant, noise-free:" << report(r, "constant"));
   // The nonlinear arm's free response is two damped modes up to the Coriolis terms, quadratic in
-  // the ~0.01 rad deviations: the stiffness is recovered to well under 1 % (measured 0.03 % for
-  // k11, 0.6 % for k12), far inside issue 6's 10 % for k11.
+  // the ~0.01 rad deviations: the stiffness is recovered to well under 1 % (measured 0.04 % for
+  // k11, 0.8 % for k12 with the default chirped frame fits), far inside issue 6's 10 % for k11.
   for (const auto& [row, col] : {std::pair{0, 0}, {0, 1}, {1, 1}}) {
     BOOST_CHECK_LT(percent_rms_error(r, "constant", row, col, 2.6, 4.5), 1.0);
   }
@@ -97,9 +97,10 @@ BOOST_AUTO_TEST_CASE(constant_stiffness_noise_free_is_recovered_to_one_percent) 
 }
 
 BOOST_AUTO_TEST_CASE(constant_stiffness_at_20_db_meets_issue_6s_k11_target) {
-  // Issue 6: k11 within 10 % (percentage RMS over 2.6-4.5 s) at 20 dB. Measured 4.8 % (2.6-3.175 s:
-  // 0.5 %); 29 % before degenerate frame fits were flagged and the chains started from a
-  // non-degenerate frame (docs/tfa.md).
+  // Issue 6: k11 within 10 % (percentage RMS over 2.6-4.5 s) at 20 dB. Measured 1.3 % (2.6-3.175 s:
+  // 0.5 %) with the default chirped frame fits, 4.8 % with the stationary ones (--chirp false);
+  // 29 % before degenerate frame fits were flagged and the chains started from a non-degenerate
+  // frame (docs/tfa.md).
   const est::TfaResult r = est::identify_tfa(posture_trial("constant", 20.0, 7), piovesan_options());
   BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
   BOOST_TEST_MESSAGE("constant, SNR 20 dB: " << report(r, "constant"));
@@ -107,17 +108,39 @@ BOOST_AUTO_TEST_CASE(constant_stiffness_at_20_db_meets_issue_6s_k11_target) {
   BOOST_CHECK_LT(percent_rms_error(r, "constant", 0, 0, 2.6, 3.175), 10.0);
 }
 
-BOOST_AUTO_TEST_CASE(time_varying_and_noisy_cases_are_reported) {
-  // Issue 6 asks k11 within 10 % for sigmoid K too; this implementation does not reach it (see
-  // docs/tfa.md, "Limits"): the errors are printed (--log_level=message) for the report, and
-  // only their being finite where the pipeline succeeds is checked.
-  for (const std::string kind : {"sigmoid", "sharp"}) {
-    for (const double snr : {HUGE_VAL, 20.0}) {
-      const est::TfaResult r = est::identify_tfa(posture_trial(kind, snr, 7), piovesan_options());
-      BOOST_TEST_MESSAGE(kind << ", SNR " << snr << " dB: " << (r.status.ok ? "" : r.status.message)
-                              << report(r, kind));
-      if (r.status.ok) BOOST_CHECK(std::isfinite(percent_rms_error(r, kind, 0, 0, 2.6, 4.5)));
-    }
+BOOST_AUTO_TEST_CASE(sigmoid_stiffness_meets_issue_6s_k11_target) {
+  // Issue 6: k11 within 10 % over 2.6-4.5 s for sigmoid K too. The default chirped frame fits
+  // follow the sweep: measured 2.8 % noise-free and 6.7 % at 20 dB (this seed; over the seeds
+  // 1-6, 8-10, 12-14 of this generator 9 of 12 within 10 %, worst 17.5 %: docs/tfa.md). The
+  // stationary frame model lags it (13.1 % at 20 dB here, 1 of those 12 seeds within 10 %);
+  // checked too, so that the comparison stays honest.
+  for (const double snr : {HUGE_VAL, 20.0}) {
+    const est::TfaResult r = est::identify_tfa(posture_trial("sigmoid", snr, 7), piovesan_options());
+    BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+    BOOST_TEST_MESSAGE("sigmoid, SNR " << snr << " dB:" << report(r, "sigmoid"));
+    BOOST_CHECK_LT(percent_rms_error(r, "sigmoid", 0, 0, 2.6, 4.5), 10.0);
+  }
+  est::TfaOptions stationary = piovesan_options();
+  stationary.ridges.fit_chirp = false;
+  const est::TfaResult r = est::identify_tfa(posture_trial("sigmoid", 20.0, 7), stationary);
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  BOOST_TEST_MESSAGE("sigmoid, SNR 20 dB, stationary frame fits:" << report(r, "sigmoid"));
+  BOOST_CHECK_GT(percent_rms_error(r, "sigmoid", 0, 0, 2.6, 4.5), 10.0);
+}
+
+BOOST_AUTO_TEST_CASE(sharp_stiffness_is_reported) {
+  // Issue 6 asks sharp K to be reported only (docs/tfa.md, "Limits": a linear chirp over a 0.75 s
+  // window cannot follow a fivefold step within ~0.15 s). Measured over 2.6-4.5 s: k11 24 %
+  // noise-free (7342 % before the amplitude-to-noise ratio had a floor for noise-free data: the
+  // vanished slow mode's track was left valid; 151 % with the stationary frame fits) and 27 % at
+  // 20 dB. The errors are printed
+  // (--log_level=message); the pipeline must succeed and give finite errors.
+  for (const double snr : {HUGE_VAL, 20.0}) {
+    const est::TfaResult r = est::identify_tfa(posture_trial("sharp", snr, 7), piovesan_options());
+    BOOST_TEST_MESSAGE("sharp, SNR " << snr << " dB: " << (r.status.ok ? "" : r.status.message)
+                                     << report(r, "sharp"));
+    BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+    BOOST_CHECK(std::isfinite(percent_rms_error(r, "sharp", 0, 0, 2.6, 4.5)));
   }
 }
 
