@@ -14,11 +14,11 @@ stiffid="$build/stiffid"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 /usr/bin/python3 "$here/peer_tfa.py" --make-trial "$work/trial.csv"
-time_one() {  # wall seconds of one run of "$@"
+time_one() {  # wall seconds of one run of "$@" (bash's own clock: no process forked to read it)
   local start end
-  start=$(date +%s.%N)
+  start=$EPOCHREALTIME
   "$@" > /dev/null
-  end=$(date +%s.%N)
+  end=$EPOCHREALTIME
   echo "$end - $start" | bc -l
 }
 median() { sort -g | awk '{a[NR] = $1} END {print (NR % 2) ? a[(NR + 1) / 2] : (a[NR / 2] + a[NR / 2 + 1]) / 2}'; }
