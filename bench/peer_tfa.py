@@ -369,7 +369,7 @@ def identify(path, onset_s, window_s=0.75, hop_s=0.0025, fmin=0.5, fmax=20.0, pe
     lam_all = np.zeros((frames, 2), complex)
     coef_all = np.zeros((frames, 2, 2), complex)
     for m in range(frames):
-        p = int(np.clip(round((m - grid[0]) / stride), 0, grid.size - 1))
+        p = int(np.clip(np.floor((m - grid[0]) / stride + 0.5), 0, grid.size - 1))  # as lround
         f = moved(refit[p], (m - grid[p]) * dt)
         lam_all[m], coef_all[m] = f["lam"], f["coef"]
     amp = 2 * coef_all  # (T, mode, channel)
