@@ -8,8 +8,8 @@
 //               [--shape-knots-s 0.5] [--baseline BASE.csv] [--subject SPEC.json]
 //               [--window kaiser:3|hann|gaussian:S] [--window-s 0.75] [--hop-s 0.0025]
 //               [--fft-size N] [--fmin 0.5] [--fmax 20] [--jump-penalty 2] [--max-jump-hz 0.5]
-//               [--chirp false|true] [--sg-window-s 0.25] [--sg-order 3] [--pulse-s 0.02]
-//               [--analytic]
+//               [--chirp true|false] [--anr-floor-db 100] [--sg-window-s 0.25] [--sg-order 3]
+//               [--pulse-s 0.02] [--analytic]
 //               [--decimation D] [-o OUT.json] [--spectrogram OUT.csv]
 //
 // Output JSON (stdout without -o; every series runs over "t_s", frame centres in s; non-finite
@@ -25,14 +25,14 @@
 //   "valid"[j] (per time: mode j's amplitude-to-noise ratio and frequency SD within limits; for
 //   the spectrogram method: the frame resolved, its frequency inside the ridge band and near its
 //   ridge, its amplitude-to-noise ratio at least 0 dB, the frame's fits in the ridges' order and
-//   without cancelling modes, and with --chirp true its chirped model not missing the data),
+//   without cancelling modes, and with the chirped fits its model not missing the data),
 //   "anr_db"[j] (both methods; null for the spectrogram when the trial holds no record before the
 //   onset), "K_valid" (per time: every mode valid and eta^2 > Gamma^2; modal).
 // For --method modal the spectrogram options are not used; "options" lists the modal ones and the
 // data-chosen weights, and f_ridge_hz / alpha_ridge_per_s repeat the fitted tracks.
-// --chirp true (spectrogram method): frame fits whose modes' lambdas change linearly through the
-// window (estimators/ridge.hpp, docs/tfa.md "Chirped frame fits"); the default is the stationary
-// frame model.
+// --chirp true (spectrogram method, the default): frame fits whose modes' lambdas change linearly
+// through the window (estimators/ridge.hpp, docs/tfa.md "Chirped frame fits"); --chirp false: the
+// stationary frame model.
 // --spectrogram writes CSV rows t_s,f_hz,channel,power,t_reassigned_s,f_reassigned_hz for the bins
 // within 60 dB of the map's peak (scripts/plot_spectrogram.py draws it with the ridges).
 // Exit 2 on bad input, 1 when frames cannot be resolved; no file is written then.

@@ -758,15 +758,20 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
 
   FrameContext ctx{sg, options, n, channels, !sg.analytic};
   std::vector<FrameFit> fits(frames);
-  // The chirped fit replaces the stationary one when it lowers the sum of squares by more than
-  // chirp_min_gain expected noise variances per added unknown (2 per mode): a test of whether
-  // the frame's data ask for the chirp rates. Without a noise level, whenever it lowers it.
-  auto take_chirped = [&](bool stationary_ok, const FrameFit& stationary, bool chirped_ok,
-                          const FrameFit& chirped) {
-    if (!chirped_ok) return false;
-    if (!stationary_ok) return true;
-    return stationary.cost - chirped.cost >
-           options.chirp_min_gain * 2.0 * n * chirped.noise_per_row;
+  // Frame m fitted with chirp rates from `chirped` replaces the stationary `fit` (ok: whether
+  // that converged) when it converges and the stationary fit did not, or when it lowers the sum of
+  // squares by more than chirp_min_gain expected noise variances per added unknown (2 per mode):
+  // a test of whether the frame's data ask for the chirp rates. Without a noise level, whenever
+  // it lowers it.
+  auto try_chirped = [&](int m, const std::vector<int>& centres, FrameFit chirped, FrameFit& fit,
+                         bool& ok) {
+    if (!gauss_newton(ctx, m, centres, chirped, Chirp::fitted)) return;
+    if (ok && !(fit.cost - chirped.cost >
+                options.chirp_min_gain * 2.0 * n * chirped.noise_per_row)) {
+      return;
+    }
+    fit = std::move(chirped);
+    ok = true;
   };
   // Pass 1. A frame starts from its neighbour's solution moved by the hop(s) between them along
   // its lambdas (and chirp rates), or from the ridges' own starting values when there is none or
@@ -788,24 +793,13 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
       }
       fit = moved;
       ok = gauss_newton(ctx, m, centres, fit, Chirp::none);
-      if (chirp) {
-        FrameFit chirped = std::move(moved);
-        const bool chirped_ok = gauss_newton(ctx, m, centres, chirped, Chirp::fitted);
-        if (take_chirped(ok, fit, chirped_ok, chirped)) {
-          fit = std::move(chirped);
-          ok = true;
-        }
-      }
+      if (chirp) try_chirped(m, centres, std::move(moved), fit, ok);
     }
     if (!ok) {
       for (int j = 0; j < n; ++j) centres[j] = r.bin(m, j);
       fit = initial_fit(ctx, m, centres);
       ok = fit.ok && gauss_newton(ctx, m, centres, fit, Chirp::none);
-      if (ok && chirp) {
-        FrameFit chirped = fit;
-        const bool chirped_ok = gauss_newton(ctx, m, centres, chirped, Chirp::fitted);
-        if (take_chirped(ok, fit, chirped_ok, chirped)) fit = std::move(chirped);
-      }
+      if (ok && chirp) try_chirped(m, centres, fit, fit, ok);
     }
     fit.ok = ok;
     fit.degenerate = ok && degenerate_fit(ctx, m, fit);
