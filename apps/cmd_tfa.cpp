@@ -248,6 +248,8 @@ void run(TfaCommandOptions cli) {
                            {"track_roughness_from_data", mo.track_roughness < 0.0},
                            {"decay_tie", r.modes.decay_tie},
                            {"decay_tie_from_data", mo.decay_tie < 0.0},
+                           {"frequency_tie", r.modes.frequency_tie},
+                           {"frequency_tie_from_data", mo.frequency_tie < 0.0},
                            {"design", estimators::to_string(mo.design)},
                            {"sliding_window_s", mo.sliding_window_s},
                            {"real_terms", r.modes.real_terms.size()},
@@ -259,9 +261,13 @@ void run(TfaCommandOptions cli) {
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
     out["converged"] = r.modes.converged;
     out["iterations"] = r.modes.iterations;
-    std::vector<double> ratios;
-    for (const estimators::ModeTrack& mode : r.modes.modes) ratios.push_back(mode.decay_ratio);
+    std::vector<double> ratios, frequency_ratios;
+    for (const estimators::ModeTrack& mode : r.modes.modes) {
+      ratios.push_back(mode.decay_ratio);
+      frequency_ratios.push_back(mode.frequency_ratio);
+    }
     out["decay_ratio"] = ratios;
+    out["frequency_ratio"] = frequency_ratios;
     // Real terms b_k exp(rate (t - t_s[0])): the non-oscillatory part of the response (fibre
     // creep of a Poynting-Thomson element); not modes, so not in K, C or the normalized force.
     nlohmann::json real_terms = nlohmann::json::array();
@@ -408,6 +414,13 @@ void add_tfa_command(CLI::App& app) {
                   "tracks, relative (0: no tie; < 0: chosen from the data by the BIC rule; for "
                   "posture trials whose stiffness and damping change by a common factor, not "
                   "for movement trials: docs/tfa_modal.md)")
+      ->capture_default_str();
+  sub->add_option("--frequency-tie", o.modes.frequency_tie,
+                  "modal: prior SD of the soft tie omega_j(t) = rho_j omega_1(t) of the "
+                  "frequency tracks, relative (0: no tie; < 0: chosen from the data by the BIC "
+                  "rule, after --decay-tie; for posture trials whose stiffness changes by a "
+                  "common factor, not when only some stiffness terms change or the ellipse "
+                  "rotates: docs/tfa_modal.md)")
       ->capture_default_str();
   sub->add_option("--design", cli->design,
                   "modal: whole (the whole free response at once, spline tracks) or sliding "

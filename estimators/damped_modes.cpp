@@ -5,6 +5,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <limits>
@@ -53,6 +54,10 @@ void check_options(const DampedModesOptions& o) {
   if (!(o.min_mode_separation >= 0.0 && o.min_mode_separation < 1.0))
     fail("min_mode_separation", "must be in [0, 1)");
   if (o.max_iterations < 1) fail("max_iterations", "must be at least 1");
+  if (!std::isfinite(o.decay_tie))
+    fail("decay_tie (--decay-tie)", "must be finite (relative SD; 0: no tie)");
+  if (!std::isfinite(o.frequency_tie))
+    fail("frequency_tie (--frequency-tie)", "must be finite (relative SD; 0: no tie)");
 }
 
 Prepared prepare(const Eigen::Ref<const Eigen::MatrixXd>& x, double rate_hz, double start_s,
@@ -128,17 +133,20 @@ struct LinearTerm {
   int function;                // column of the time-function matrix
 };
 
-// Soft tie of the decay tracks: the spline coefficients of alpha_j (j > 0) follow rho_j times
-// those of alpha_0 (so alpha_j(t) = rho_j alpha_0(t) when the tie holds exactly), with prior SD
+// Soft tie of one kind of track (part 0: the decays alpha_j, part 1: the frequencies omega_j):
+// the spline coefficients of mode j > 0 follow rho_j times those of mode 0 (so alpha_j(t) =
+// rho_j alpha_0(t), or omega_j(t) = rho_j omega_0(t), when the tie holds exactly), with prior SD
 // sd * scale(j) per coefficient; the ratios rho_j are extra parameters after the tracks' (flat
 // prior). It holds when stiffness and damping change by a common factor (docs/tfa_modal.md).
-struct DecayTie {
+struct TrackTie {
   double sd = 0.0;        // relative prior SD; 0: no tie
-  Eigen::VectorXd scale;  // [n] 1/s, mode j's mean |alpha| at the start of the tie search
+  Eigen::VectorXd scale;  // [n] 1/s or rad/s, mode j's mean |coefficient| when the search began
 };
+using TrackTies = std::array<TrackTie, 2>;  // the decay tie, the frequency tie
 
 // Variable-projection problem for fixed linear terms and shape penalty. Parameters: the track
-// coefficients (2 n M), the tie's ratios (n - 1 with a tie), the real terms' rates (R, 1/s).
+// coefficients (2 n M), the decay tie's ratios (n - 1 with that tie), the frequency tie's (n - 1
+// with that tie), the real terms' rates (R, 1/s).
 // Linear parameters: Re, Im of each LinearTerm, then the real terms' whitened amplitudes (R C),
 // then, with offsets, a constant whitened offset per channel (C), then, with a second-order mode
 // j, per whitened channel the amplitude of exp(2 Re Phi_j) and Re, Im of that of exp(2 Phi_j)
@@ -148,7 +156,7 @@ class VpProblem {
   VpProblem(const Prepared& p, int modes, const Eigen::MatrixXd& phase_integrals,
             const Eigen::MatrixXd& functions, std::vector<LinearTerm> terms,
             std::vector<std::pair<int, int>> penalized_pairs, double shape_weight,
-            const Eigen::MatrixXd& prior_rows, DecayTie tie, int real_terms, bool offsets,
+            const Eigen::MatrixXd& prior_rows, TrackTies ties, int real_terms, bool offsets,
             int second_order_mode = -1)
       : p_(p),
         modes_(modes),
@@ -158,14 +166,17 @@ class VpProblem {
         pairs_(std::move(penalized_pairs)),
         sqrt_weight_(std::sqrt(shape_weight)),
         prior_(prior_rows),
-        tie_(std::move(tie)),
+        ties_(std::move(ties)),
         real_(real_terms),
         offsets_(offsets ? static_cast<int>(p.whiten.rows()) : 0),
         so_mode_(second_order_mode) {}
 
   int basis() const { return static_cast<int>(ig_.cols()); }
   int track_parameters() const { return 2 * modes_ * basis(); }
-  int tied_modes() const { return tie_.sd > 0.0 ? modes_ - 1 : 0; }
+  // Modes tied by the tie of part 0 (decays) or 1 (frequencies), and where its ratios are.
+  int tied(int part) const { return ties_[part].sd > 0.0 ? modes_ - 1 : 0; }
+  int first_ratio(int part) const { return track_parameters() + (part == 1 ? tied(0) : 0); }
+  int tied_modes() const { return tied(0) + tied(1); }
   int real_terms() const { return real_; }
   int first_rate() const { return track_parameters() + tied_modes(); }
   int parameters() const { return first_rate() + real_; }
@@ -269,11 +280,13 @@ class VpProblem {
     r.head(rd + rp) = b_ - a * beta;
     const int rr = static_cast<int>(prior_.rows()), m = basis(), tp = track_parameters();
     r.segment(rd + rp, rr) = prior_ * th.head(tp);
-    for (int j = 1; j <= tied_modes(); ++j) {
-      const double rho = th(tp + j - 1), inv = 1.0 / (tie_.sd * tie_.scale(j));
-      r.segment(rd + rp + rr + (j - 1) * m, m) =
-          inv * (th.segment(2 * j * m, m) - rho * th.segment(0, m));
-    }
+    for (int part = 0, row = rd + rp + rr; part < 2; ++part)
+      for (int j = 1; j <= tied(part); ++j, row += m) {
+        const double rho = th(first_ratio(part) + j - 1);
+        const double inv = 1.0 / (ties_[part].sd * ties_[part].scale(j));
+        r.segment(row, m) =
+            inv * (th.segment((2 * j + part) * m, m) - rho * th.segment(part * m, m));
+      }
     if (linear_out) *linear_out = beta;
     if (!jacobian) return true;
 
@@ -340,15 +353,16 @@ class VpProblem {
     jac.topRows(rd + rp) = -d;
     jac.block(rd + rp, 0, rr + tie_rows(), np).setZero();
     jac.block(rd + rp, 0, rr, tp) = prior_;
-    for (int j = 1; j <= tied_modes(); ++j) {
-      const double rho = th(tp + j - 1), inv = 1.0 / (tie_.sd * tie_.scale(j));
-      for (int q = 0; q < m; ++q) {
-        const int row = rd + rp + rr + (j - 1) * m + q;
-        jac(row, 2 * j * m + q) = inv;
-        jac(row, q) = -rho * inv;
-        jac(row, tp + j - 1) = -inv * th(q);
+    for (int part = 0, row = rd + rp + rr; part < 2; ++part)
+      for (int j = 1; j <= tied(part); ++j) {
+        const int ratio = first_ratio(part) + j - 1;
+        const double rho = th(ratio), inv = 1.0 / (ties_[part].sd * ties_[part].scale(j));
+        for (int q = 0; q < m; ++q, ++row) {
+          jac(row, (2 * j + part) * m + q) = inv;
+          jac(row, part * m + q) = -rho * inv;
+          jac(row, ratio) = -inv * th(part * m + q);
+        }
       }
-    }
     return true;
   }
 
@@ -365,7 +379,7 @@ class VpProblem {
   std::vector<std::pair<int, int>> pairs_;  // linear terms whose difference is penalized
   double sqrt_weight_;
   Eigen::MatrixXd prior_;  // (R x 2 n M) roughness prior rows on the track coefficients
-  DecayTie tie_;
+  TrackTies ties_;
   int real_;  // R real terms
   int offsets_;  // C constant offsets (whitened), or 0
   int so_mode_;  // mode j whose second-order terms are fitted (exp(2 Re Phi_j), exp(2 Phi_j)), or
@@ -768,7 +782,7 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
     // No offsets: within one window a constant trades with the slow mode's parameters (noise-
     // free spline-exact test: the frequency SDs of the first windows rise past the validity
     // limit); the posture's error is a record-wide constant for the whole-record fit.
-    const VpProblem problem(w, modes, integrals, constant, terms, {}, 0.0, no_prior, DecayTie{},
+    const VpProblem problem(w, modes, integrals, constant, terms, {}, 0.0, no_prior, TrackTies{},
                             real, false);
     Eigen::VectorXd candidate = theta;
     StageOutcome o = solve(problem, candidate, options.max_iterations);
@@ -962,20 +976,20 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // former 60 dB noise floor tracks rough enough to chase it made every frame fail the
   // frequency-SD validity test (90 deg constant K: K_valid on 0 of 485 frames). Whitened units.
   //
-  // Decay tie (DecayTie), its prior SD from the data at the chosen roughness along the
-  // continuation loose -> tight, 0.3 .. 0.003 (each fit starting from the previous one): a
-  // tighter tie is taken while the fit it loses stays within what the same rule grants for the
-  // effective parameters it saves, RSS rise <= ln(N) * (saved effective parameters) * s^2. When
-  // the modes' decays do not change by a common factor the RSS rises faster and the search stops
-  // (no tie when even the loosest is refused). A tie leaves fewer effective parameters to each
-  // roughness step, so with a tie the roughness continuation then resumes from the chosen
-  // roughness, rougher fits taken by the same rule.
+  // Decay tie, then frequency tie (TrackTie; both opt-in), each its prior SD from the data at
+  // the chosen roughness along the continuation loose -> tight, 0.3 .. 0.003 (each fit starting
+  // from the previous one): a tighter tie is taken while the fit it loses stays within what the
+  // same rule grants for the effective parameters it saves, RSS rise <= ln(N) * (saved effective
+  // parameters) * s^2. When the modes' decays (frequencies) do not change by a common factor the
+  // RSS rises faster and the search stops (no tie when even the loosest is refused). A tie leaves
+  // fewer effective parameters to each roughness step, so with a tie the roughness continuation
+  // then resumes from the chosen roughness, rougher fits taken by the same rule.
   // The strongest mode at the start (largest whitened amplitude of the linear solution at the
   // start tracks) gets the second-order terms.
   int so_mode = -1;
   if (options.second_order) {
     const VpProblem probe(p, modes, integrals, constant, terms, {}, 0.0,
-                          prior_rows(track, modes, grid[0]), DecayTie{}, real, options.offsets);
+                          prior_rows(track, modes, grid[0]), TrackTies{}, real, options.offsets);
     Eigen::VectorXd beta0;
     std::vector<double> scratch(probe.residuals());
     if (probe.evaluate(theta.data(), scratch.data(), nullptr, &beta0)) {
@@ -999,16 +1013,16 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   Design design{constant, terms, {}, 0.0};
   std::unique_ptr<VpProblem> stage1;
   StageOutcome outcome;
-  DecayTie tie;
+  TrackTies ties;
   double previous_rss = std::numeric_limits<double>::infinity();
   double previous_dof = 0.0;
   // Fits one candidate from `theta`; taken (stage1, theta, outcome, previous_*) when `accept`
   // says so for its RSS and effective parameters; false when it is not usable or not taken.
-  auto try_candidate = [&](double roughness, const DecayTie& candidate_tie, bool with_dof,
+  auto try_candidate = [&](double roughness, const TrackTies& candidate_ties, bool with_dof,
                            const Eigen::VectorXd& start, auto&& accept) {
     auto problem = std::make_unique<VpProblem>(
         p, modes, integrals, design.functions, design.terms, design.pairs, design.weight,
-        prior_rows(track, modes, roughness), candidate_tie, real, options.offsets, so_mode);
+        prior_rows(track, modes, roughness), candidate_ties, real, options.offsets, so_mode);
     Eigen::VectorXd candidate = start;
     const StageOutcome o = solve(*problem, candidate, options.max_iterations);
     result.iterations += o.iterations;
@@ -1037,7 +1051,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // GCV's shape weight for design `d` at the tracks `at`.
   auto gcv_weight = [&](const Design& d, const Eigen::VectorXd& at, double roughness) {
     const VpProblem probe(p, modes, integrals, d.functions, d.terms, d.pairs, 1.0,
-                          prior_rows(track, modes, roughness), tie, real, options.offsets, so_mode);
+                          prior_rows(track, modes, roughness), ties, real, options.offsets, so_mode);
     return choose_shape_weight(probe, at, p);
   };
   auto shape_design = [&](const VpProblem& fitted, const Eigen::VectorXd& at, double roughness) {
@@ -1068,7 +1082,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // Fits design `d` at `roughness` from theta; when usable, takes it (theta, outcome, `into`).
   auto fit_design = [&](const Design& d, double roughness, std::unique_ptr<VpProblem>& into) {
     auto problem = std::make_unique<VpProblem>(p, modes, integrals, d.functions, d.terms, d.pairs,
-                                               d.weight, prior_rows(track, modes, roughness), tie,
+                                               d.weight, prior_rows(track, modes, roughness), ties,
                                                real, options.offsets, so_mode);
     Eigen::VectorXd candidate = theta;
     const StageOutcome o = solve(*problem, candidate, options.max_iterations);
@@ -1088,13 +1102,15 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   std::size_t chosen = 0;
   Eigen::VectorXd smoothest;  // the smoothest constant-shape fit, where the shape stage may start
   for (std::size_t g = 0; g < grid.size(); ++g) {
-    if (!try_candidate(grid[g], tie, grid.size() > 1 || options.decay_tie < 0.0 || so_offer >= 0,
+    if (!try_candidate(grid[g], ties,
+                       grid.size() > 1 || options.decay_tie < 0.0 || options.frequency_tie < 0.0 ||
+                           so_offer >= 0,
                        theta, rougher))
       break;
     chosen = g;
     if (g == 0 && so_offer >= 0) {
       so_mode = so_offer;
-      if (!try_candidate(grid[0], tie, true, theta, rougher)) so_mode = -1;
+      if (!try_candidate(grid[0], ties, true, theta, rougher)) so_mode = -1;
     }
     if (g == 0) smoothest = theta;
   }
@@ -1103,39 +1119,42 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     return result;
   }
   result.track_roughness = grid[chosen];
-  if (modes > 1 && options.decay_tie != 0.0) {
-    std::vector<double> tie_grid = {options.decay_tie};
-    if (options.decay_tie < 0.0) tie_grid = {0.3, 0.1, 0.03, 0.01, 0.003};
-    DecayTie candidate_tie;
-    candidate_tie.scale.resize(modes);
-    // [tracks, ratios, real rates]
-    const int tracks = 2 * modes * m;
+  // The ties' search; their ratios go in after the tracks (the decay tie's first).
+  auto search_tie = [&](int part, double option) {
+    std::vector<double> tie_grid = {option};
+    if (option < 0.0) tie_grid = {0.3, 0.1, 0.03, 0.01, 0.003};
+    TrackTies candidate = ties;
+    TrackTie& tie = candidate[part];
+    tie.scale.resize(modes);
+    const Eigen::Index before = 2 * modes * m + (part == 1 && ties[0].sd > 0.0 ? modes - 1 : 0);
     Eigen::VectorXd tied(theta.size() + modes - 1);
-    tied.head(tracks) = theta.head(tracks);
-    tied.tail(real) = theta.tail(real);
+    tied.head(before) = theta.head(before);
+    tied.tail(theta.size() - before) = theta.tail(theta.size() - before);
     for (int j = 0; j < modes; ++j) {
-      candidate_tie.scale(j) = std::max(theta.segment(2 * j * m, m).cwiseAbs().mean(), 1e-3);
-      if (j > 0) {
-        tied(tracks + j - 1) = theta.segment(2 * j * m, m).mean() / theta.segment(0, m).mean();
-      }
+      const auto coefficients = theta.segment((2 * j + part) * m, m);
+      tie.scale(j) = std::max(coefficients.cwiseAbs().mean(), 1e-3);
+      if (j > 0) tied(before + j - 1) = coefficients.mean() / theta.segment(part * m, m).mean();
     }
-    if (!tied.segment(tracks, modes - 1).allFinite()) tied.segment(tracks, modes - 1).setOnes();
+    if (!tied.segment(before, modes - 1).allFinite()) tied.segment(before, modes - 1).setOnes();
     auto tighter = [&](double rss, double dof, double price) {
-      return options.decay_tie > 0.0 || rss - previous_rss <= price * (previous_dof - dof);
+      return option > 0.0 || rss - previous_rss <= price * (previous_dof - dof);
     };
     for (const double sd : tie_grid) {
-      candidate_tie.sd = sd;
-      if (!try_candidate(result.track_roughness, candidate_tie, true, tie.sd > 0.0 ? theta : tied,
-                         tighter)) {
+      tie.sd = sd;
+      if (!try_candidate(result.track_roughness, candidate, true,
+                         ties[part].sd > 0.0 ? theta : tied, tighter))
         break;
-      }
-      tie = candidate_tie;
+      ties[part] = tie;
     }
-    result.decay_tie = tie.sd;
-    for (std::size_t g = chosen + 1; tie.sd > 0.0 && g < grid.size(); ++g) {
-      if (!try_candidate(grid[g], tie, true, theta, rougher)) break;
-      result.track_roughness = grid[g];
-    }
+  };
+  if (modes > 1 && options.decay_tie != 0.0) search_tie(0, options.decay_tie);
+  if (modes > 1 && options.frequency_tie != 0.0) search_tie(1, options.frequency_tie);
+  result.decay_tie = ties[0].sd;
+  result.frequency_tie = ties[1].sd;
+  const bool any_tie = ties[0].sd > 0.0 || ties[1].sd > 0.0;
+  for (std::size_t g = chosen + 1; any_tie && g < grid.size(); ++g) {
+    if (!try_candidate(grid[g], ties, true, theta, rougher)) break;
+    result.track_roughness = grid[g];
   }
   std::unique_ptr<VpProblem> final_problem = std::move(stage1);
 
@@ -1154,9 +1173,9 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // the result when its BIC (effective parameters, the shapes' by the trace of their penalized
   // smoother) is lower and its frequency tracks do not cross.
   if (options.shape_refit && outcome.usable && shapes && options.shape_weight < 0.0 &&
-      grid.size() > 1 && tie.sd == 0.0 && smoothest.size() > 0) {
+      grid.size() > 1 && !any_tie && smoothest.size() > 0) {
     const VpProblem base(p, modes, integrals, constant, terms, {}, 0.0,
-                         prior_rows(track, modes, grid[0]), DecayTie{}, real, options.offsets,
+                         prior_rows(track, modes, grid[0]), TrackTies{}, real, options.offsets,
                          so_mode);
     design = shape_design(base, smoothest, grid[0]);
     std::unique_ptr<VpProblem> first_problem = std::move(final_problem);
@@ -1167,7 +1186,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     previous_dof = 0.0;
     double refit_roughness = -1.0;
     for (std::size_t g = 0; g < grid.size() && grid[g] < result.track_roughness; ++g) {
-      if (!try_candidate(grid[g], tie, true, g == 0 ? smoothest : theta, rougher)) break;
+      if (!try_candidate(grid[g], ties, true, g == 0 ? smoothest : theta, rougher)) break;
       refit_roughness = grid[g];
     }
     bool take_refit = false;
@@ -1252,7 +1271,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     ModeTrack mt;
     const Eigen::VectorXd ca = theta.segment(2 * j * m, m), cw = theta.segment((2 * j + 1) * m, m);
     mt.alpha_per_s = values * ca;
-    if (j > 0 && tie.sd > 0.0) mt.decay_ratio = theta(2 * modes * m + j - 1);
+    if (j > 0 && ties[0].sd > 0.0) mt.decay_ratio = theta(fp.first_ratio(0) + j - 1);
+    if (j > 0 && ties[1].sd > 0.0) mt.frequency_ratio = theta(fp.first_ratio(1) + j - 1);
     mt.omega_rad_per_s = values * cw;
     mt.alpha_dot_per_s2 = slopes * ca;
     mt.omega_dot_rad_per_s2 = slopes * cw;

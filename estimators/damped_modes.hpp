@@ -75,6 +75,15 @@ struct DampedModesOptions {
                                         ///< helps posture trials whose K and C change by a
                                         ///< common factor and hurts movement trials
                                         ///< (docs/tfa_modal.md)
+  double frequency_tie = 0.0;           ///< soft tie of the frequency tracks, omega_j(t) =
+                                        ///< rho_j omega_1(t) with rho_j fitted: prior SD of the
+                                        ///< difference, relative to mode j's mean frequency
+                                        ///< (dimensionless); 0 (default): no tie; < 0: from the
+                                        ///< data as decay_tie (searched after it). Opt-in, as
+                                        ///< decay_tie: it holds when stiffness changes by a
+                                        ///< common factor, and wrecks trials where it does not
+                                        ///< (only k22 modulated, a rotating ellipse;
+                                        ///< docs/tfa_modal.md)
   double init_window_s = 0.5;           ///< sliding matrix-pencil windows for the start, s
   double anr_threshold_db = 0.0;        ///< validity: amplitude-to-noise ratio at least this, dB
   double max_frequency_sd_hz = 0.1;     ///< validity: posterior SD of f_j(t) at most this, Hz
@@ -133,6 +142,8 @@ struct ModeTrack {
   double decay_ratio = 1.0;                ///< rho_j of the decay tie: alpha_j(t) ~ rho_j times
                                            ///< the reference mode's (the start's lowest
                                            ///< frequency, ratio 1); 1 without a tie
+  double frequency_ratio = 1.0;            ///< rho_j of the frequency tie: omega_j(t) ~ rho_j
+                                           ///< times the reference mode's; 1 without a tie
   Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] fit converged; ANR, frequency SD, mode-to-
                                                 ///< data power and separation within limits
 };
@@ -160,6 +171,7 @@ struct DampedModesResult {
                                     ///< result (track_roughness and shape_weight are the refit's)
   double track_roughness = 0.0;     ///< track roughness prior SD used, rad/s and 1/s
   double decay_tie = 0.0;           ///< decay-tie prior SD used (relative); 0: none
+  double frequency_tie = 0.0;       ///< frequency-tie prior SD used (relative); 0: none
   double residual_rms_whitened = 0.0;  ///< RMS whitened data residual (1 = noise level)
   int iterations = 0;               ///< Levenberg-Marquardt iterations, all stages
 };

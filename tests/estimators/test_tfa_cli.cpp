@@ -108,11 +108,12 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
                           "eta_squared_per_s2", "K_nm_per_rad", "C_nms_per_rad", "eigenvectors",
                           "normalized_force", "options", "valid", "anr_db", "K_valid",
                           "noise_covariance_rad2", "residual_rms_whitened", "iterations",
-                          "decay_ratio", "real_terms", "offset_rad"}) {
+                          "decay_ratio", "frequency_ratio", "real_terms", "offset_rad"}) {
     BOOST_CHECK_MESSAGE(j.contains(key), key);
   }
-  for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "shape_weight",
-                          "real_terms", "real_terms_from_data", "offsets", "shape_refit"}) {
+  for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "frequency_tie",
+                          "frequency_tie_from_data", "shape_weight", "real_terms",
+                          "real_terms_from_data", "offsets", "shape_refit"}) {
     BOOST_CHECK_MESSAGE(j["options"].contains(key), key);
   }
   // The noise-free constant-K trial needs no rough tracks: the shape refit is not taken.
@@ -129,6 +130,26 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   BOOST_CHECK_EQUAL(j["options"]["real_terms"].get<int>(), 0);
   BOOST_CHECK_EQUAL(j["decay_ratio"].size(), 2u);
   BOOST_CHECK_EQUAL(j["decay_ratio"][0].get<double>(), 1.0);  // the reference mode
+  // The ties are opt-in: none by default.
+  BOOST_CHECK_EQUAL(j["options"]["frequency_tie"].get<double>(), 0.0);
+  BOOST_CHECK(!j["options"]["frequency_tie_from_data"].get<bool>());
+  BOOST_CHECK_EQUAL(j["frequency_ratio"][1].get<double>(), 1.0);
+  {
+    // Constant K scales neither frequency: the tie from the data holds, its ratio is the two
+    // frequencies' (~1.4, the modes of K = [35 5; 5 20] N m/rad on the arm).
+    const fs::path tied = scratch("frequency_tie.json");
+    BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --frequency-tie -1 -o " +
+                            tied.string()),
+                        0);
+    std::ifstream tied_in(tied);
+    const nlohmann::json t = nlohmann::json::parse(tied_in);
+    BOOST_CHECK(t["options"]["frequency_tie_from_data"].get<bool>());
+    BOOST_CHECK_GT(t["options"]["frequency_tie"].get<double>(), 0.0);
+    const double ratio = t["frequency_ratio"][1].get<double>();
+    const double f0 = t["f_hz"][0][100].get<double>(), f1 = t["f_hz"][1][100].get<double>();
+    BOOST_TEST_MESSAGE("frequency ratio " << ratio << ", f " << f0 << " / " << f1 << " Hz");
+    BOOST_CHECK_CLOSE(ratio, f1 / f0, 1.0);  // percent
+  }
   const size_t frames = j["t_s"].size();
   BOOST_CHECK_GT(frames, 400u);  // ~2.4 s of free response at 200 Hz
   BOOST_CHECK_CLOSE(j["options"]["decimate_hz"].get<double>(), 200.0, 1e-12);
