@@ -137,7 +137,8 @@ struct LinearTerm {
 // the spline coefficients of mode j > 0 follow rho_j times those of mode 0 (so alpha_j(t) =
 // rho_j alpha_0(t), or omega_j(t) = rho_j omega_0(t), when the tie holds exactly), with prior SD
 // sd * scale(j) per coefficient; the ratios rho_j are extra parameters after the tracks' (flat
-// prior). It holds when stiffness and damping change by a common factor (docs/tfa_modal.md).
+// prior). The decay tie holds when stiffness and damping change by a common factor, the
+// frequency tie when the stiffness does, whatever the damping (docs/tfa_modal.md).
 struct TrackTie {
   double sd = 0.0;        // relative prior SD; 0: no tie
   Eigen::VectorXd scale;  // [n] 1/s or rad/s, mode j's mean |coefficient| when the search began
