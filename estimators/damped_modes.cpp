@@ -1174,7 +1174,11 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // the result when its BIC (effective parameters, the shapes' by the trace of their penalized
   // smoother) is lower and its frequency tracks do not cross.
   if (options.shape_refit && outcome.usable && shapes && options.shape_weight < 0.0 &&
-      grid.size() > 1 && !any_tie && smoothest.size() > 0) {
+      grid.size() > 1 && smoothest.size() > 0) {
+    // The refit is untied (its start, the smoothest fit, has no ratios): with a tie taken it is
+    // the untied explanation by changing shapes, which the BIC then weighs against the tied one.
+    const TrackTies kept_ties = ties;
+    ties = TrackTies{};
     const VpProblem base(p, modes, integrals, constant, terms, {}, 0.0,
                          prior_rows(track, modes, grid[0]), TrackTies{}, real, options.offsets,
                          so_mode);
@@ -1229,10 +1233,12 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       result.track_roughness = refit_roughness;
       result.shape_weight = design.weight;
       result.shape_refit = true;
+      result.decay_tie = result.frequency_tie = 0.0;
     } else {
       final_problem = std::move(first_problem);
       theta = first_theta;
       outcome = first_outcome;
+      ties = kept_ties;
     }
   }
 

@@ -284,6 +284,26 @@ BOOST_AUTO_TEST_CASE(mode_shapes_that_rotate_are_fitted_as_shapes_not_as_rough_t
     BOOST_CHECK_EQUAL(e.valid, e.samples);
     BOOST_CHECK_GT(w.alpha_rel, 2.0 * e.alpha_rel);
   }
+  // With the ties asked for (opt-in), the untied refit is still offered, and taken: the shapes'
+  // change is no common factor. It drops the ties, and the result is the default's.
+  DampedModesOptions tied;
+  tied.decay_tie = tied.frequency_tie = -1.0;
+  const DampedModesResult t = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, tied);
+  BOOST_REQUIRE_MESSAGE(t.status.ok, t.status.message);
+  BOOST_TEST_MESSAGE("ties asked for: refit " << t.shape_refit << ", decay tie " << t.decay_tie
+                                              << ", frequency tie " << t.frequency_tie);
+  BOOST_CHECK(t.shape_refit);
+  BOOST_CHECK_EQUAL(t.decay_tie, 0.0);
+  BOOST_CHECK_EQUAL(t.frequency_tie, 0.0);
+  BOOST_CHECK_EQUAL(t.modes[1].decay_ratio, 1.0);
+  BOOST_CHECK_EQUAL(t.modes[1].frequency_ratio, 1.0);
+  for (int j = 0; j < 2; ++j) {
+    const Errors e = track_errors(t, j, j == 0 ? m1 : m2, 2.6, 4.5);
+    BOOST_TEST_MESSAGE("ties asked for, mode " << j << ": f " << e.f_rel << ", alpha "
+                                               << e.alpha_rel);
+    BOOST_CHECK_LE(e.f_rel, 0.01);
+    BOOST_CHECK_LE(e.alpha_rel, 0.06);
+  }
 }
 
 BOOST_AUTO_TEST_CASE(close_modes_with_a_weak_one_at_20_db_within_one_percent) {
