@@ -419,8 +419,7 @@ void add_tfa_command(CLI::App& app) {
                   "modal: prior SD of the soft tie omega_j(t) = rho_j omega_1(t) of the "
                   "frequency tracks, relative (0: no tie; < 0: chosen from the data by the BIC "
                   "rule, after --decay-tie; for posture trials whose stiffness changes by a "
-                  "common factor, not when only some stiffness terms change or the ellipse "
-                  "rotates: docs/tfa_modal.md)")
+                  "common factor, not for movement trials: docs/tfa_modal.md)")
       ->capture_default_str();
   sub->add_option("--design", cli->design,
                   "modal: whole (the whole free response at once, spline tracks) or sliding "

@@ -81,9 +81,10 @@ struct DampedModesOptions {
                                         ///< (dimensionless); 0 (default): no tie; < 0: from the
                                         ///< data as decay_tie (searched after it). Opt-in, as
                                         ///< decay_tie: it holds when stiffness changes by a
-                                        ///< common factor, and wrecks trials where it does not
-                                        ///< (only k22 modulated, a rotating ellipse;
-                                        ///< docs/tfa_modal.md)
+                                        ///< common factor; it costs k12 on some constant-K
+                                        ///< posture trials and hurts movement trials
+                                        ///< (docs/tfa_modal.md). With a tie taken, the untied
+                                        ///< shape refit is still offered (shape_refit)
   double init_window_s = 0.5;           ///< sliding matrix-pencil windows for the start, s
   double anr_threshold_db = 0.0;        ///< validity: amplitude-to-noise ratio at least this, dB
   double max_frequency_sd_hz = 0.1;     ///< validity: posterior SD of f_j(t) at most this, Hz
