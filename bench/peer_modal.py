@@ -25,7 +25,8 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     prior) after the tracks'; its sd along 0.3 .. 0.003, each fit from the previous one, tighter
     while the RSS rise stays within ln(N) x saved effective dof x s^2; with a tie the roughness
     continuation then resumes from the chosen roughness by the same rule as before;
-  - stage 2 with slowly varying mode shapes (knots 0.5 s, orthogonal to the stage-1 shapes,
+  - stage 2 with slowly varying mode shapes (kept when its BIC beats the constant shapes';
+    knots 0.5 s, orthogonal to the stage-1 shapes,
     first-difference penalty whose weight GCV chooses over 1e-3 .. 1e6; the tie rows kept);
   - the shape refit (no tie; stage 1 rougher than the smoothest): stage 2's design from the
     smoothest fit, the roughness continuation in it below stage 1's choice, the weight
@@ -403,6 +404,19 @@ def fit_size(problem, theta, with_dof):
     return rss, dof
 
 
+def lower_bic(a, theta_a, b, theta_b):
+    """Fit a has a lower BIC than fit b, the residual variance unknown: N ln RSS + ln(N) dof."""
+    size_a, size_b = fit_size(a, theta_a, True), fit_size(b, theta_b, True)
+    if size_a is None or size_b is None:
+        return False
+    rows = a.rd
+    (rss_a, dof_a), (rss_b, dof_b) = size_a, size_b
+    sane = lambda dof: np.isfinite(dof) and 0 <= dof < rows
+    bic = lambda rss, dof: rows * math.log(rss) + math.log(rows) * dof
+    return (sane(dof_a) and sane(dof_b) and rss_a > 0 and rss_b > 0
+            and bic(rss_a, dof_a) < bic(rss_b, dof_b))
+
+
 def linear_effective(problem, theta):
     """Effective number of linear parameters: their count, or with a shape penalty the trace
     of the penalized linear smoother, tr((A^T A + w R^T R)^+ A^T A)."""
@@ -613,9 +627,10 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                            prior_rows(track, modes, res["track_roughness"]), tie, so[0])
         theta2, usable, conv, nfev = solve(stage2, theta, o["max_iterations"])
         res["iterations"] += nfev
-        if usable:
+        # Kept only when its BIC beats the constant shapes' (lower_bic in damped_modes.cpp).
+        if usable and lower_bic(stage2, theta2, final, theta):
             theta, converged, final, res["shape_weight"] = theta2, conv, stage2, d["weight"]
-        else:
+        elif not usable:
             shape = None
 
     # Shape refit (damped_modes.cpp): when stage 1 chose tracks rougher than the smoothest, the
@@ -653,20 +668,11 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                 if usable:
                     fit.update(problem=again, theta=theta2, converged=conv)
                     design["weight"] = w
-            size_first = fit_size(first[0], first[1], True)
-            size_refit = fit_size(fit["problem"], fit["theta"], True)
-            if size_first is not None and size_refit is not None:
-                rows = fit["problem"].rd
-                (rss_f, dof_f), (rss_r, dof_r) = size_first, size_refit
-                sane = lambda dof: np.isfinite(dof) and 0 <= dof < rows
-                # BIC with the residual variance unknown: N ln RSS + ln(N) dof
-                bic = lambda rss, dof: rows * math.log(rss) + math.log(rows) * dof
-                omega = track.values(p["tau_s"]) @ fit["theta"][:2 * modes * m].reshape(
-                    modes, 2, m)[:, 1, :].T
-                crossing = any(np.ptp(np.sign(omega[:, j] - omega[:, k])) > 1
-                               for j in range(modes) for k in range(j + 1, modes))
-                take = (sane(dof_f) and sane(dof_r) and rss_f > 0 and rss_r > 0
-                        and bic(rss_r, dof_r) < bic(rss_f, dof_f) and not crossing)
+            omega = track.values(p["tau_s"]) @ fit["theta"][:2 * modes * m].reshape(
+                modes, 2, m)[:, 1, :].T
+            crossing = any(np.ptp(np.sign(omega[:, j] - omega[:, k])) > 1
+                           for j in range(modes) for k in range(j + 1, modes))
+            take = lower_bic(fit["problem"], fit["theta"], first[0], first[1]) and not crossing
         if take:
             final, theta, converged = fit["problem"], fit["theta"], fit["converged"]
             res["track_roughness"], res["shape_weight"] = refit_roughness, design["weight"]

@@ -616,6 +616,23 @@ bool fit_size(const VpProblem& problem, const Eigen::VectorXd& theta, bool with_
   return true;
 }
 
+// True when fit `a` at theta_a has a lower BIC than fit `b` at theta_b, with the residual
+// variance unknown: N ln RSS + ln(N) dof, dof the effective parameters of fit_size. The fits need
+// not be nested, and on noise-free data both residuals lie far below the whitened noise level
+// (the arm's model error), where a variance floored at 1 would prefer the fit with fewer
+// parameters however much worse it fits (movement trials, docs/tfa_modal.md).
+bool lower_bic(const VpProblem& a, const Eigen::VectorXd& theta_a, const VpProblem& b,
+               const Eigen::VectorXd& theta_b) {
+  double rss_a = 0.0, dof_a = 0.0, rss_b = 0.0, dof_b = 0.0;
+  if (!fit_size(a, theta_a, true, rss_a, dof_a) || !fit_size(b, theta_b, true, rss_b, dof_b))
+    return false;
+  const double rows = a.data_rows();
+  auto sane = [&](double dof) { return std::isfinite(dof) && dof >= 0.0 && dof < rows; };
+  auto bic = [&](double rss, double dof) { return rows * std::log(rss) + std::log(rows) * dof; };
+  return sane(dof_a) && sane(dof_b) && rss_a > 0.0 && rss_b > 0.0 &&
+         bic(rss_a, dof_a) < bic(rss_b, dof_b);
+}
+
 // Orthonormal basis (C x C) whose first column is u / |u| (complex Householder completion).
 Eigen::MatrixXcd complete_basis(const Eigen::VectorXcd& u) {
   const Eigen::HouseholderQR<Eigen::MatrixXcd> qr(u);
@@ -1159,10 +1176,23 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   }
   std::unique_ptr<VpProblem> final_problem = std::move(stage1);
 
-  // Stage 2: slowly varying mode shapes, at the chosen tracks.
+  // Stage 2: slowly varying mode shapes, at the chosen tracks, kept only when they pay for their
+  // effective parameters (lower_bic, as the shape refit below): the shapes stay put when the
+  // data do not ask them to move. GCV's weight alone can let them absorb noise (10 dB trials,
+  // docs/tfa_modal.md).
   if (outcome.usable && shapes) {
     const Design d = shape_design(*final_problem, theta, result.track_roughness);
-    if (fit_design(d, result.track_roughness, final_problem)) result.shape_weight = d.weight;
+    std::unique_ptr<VpProblem> constant_shapes = std::move(final_problem);
+    const Eigen::VectorXd constant_theta = theta;
+    const StageOutcome constant_outcome = outcome;
+    if (fit_design(d, result.track_roughness, final_problem) &&
+        lower_bic(*final_problem, theta, *constant_shapes, constant_theta)) {
+      result.shape_weight = d.weight;
+    } else {
+      final_problem = std::move(constant_shapes);
+      theta = constant_theta;
+      outcome = constant_outcome;
+    }
   }
 
   // Shape refit. Stage 1's continuation runs with constant shapes, so mode shapes that change
@@ -1212,21 +1242,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       again.weight = gcv_weight(design, theta, refit_roughness);
       if (again.weight != design.weight && fit_design(again, refit_roughness, stage1))
         design.weight = again.weight;
-      double rss_first = 0.0, dof_first = 0.0, rss_refit = 0.0, dof_refit = 0.0;
-      if (fit_size(*first_problem, first_theta, true, rss_first, dof_first) &&
-          fit_size(*stage1, theta, true, rss_refit, dof_refit)) {
-        // BIC with the residual variance unknown, N ln RSS + ln(N) dof: the two fits are not
-        // nested, and on noise-free data both residuals lie far below the whitened noise level
-        // (the arm's model error), where a variance floored at 1 would prefer the fit with fewer
-        // parameters however much worse it fits (movement trials, docs/tfa_modal.md).
-        const double rows = stage1->data_rows();
-        auto sane = [&](double dof) { return std::isfinite(dof) && dof >= 0.0 && dof < rows; };
-        auto bic = [&](double rss, double dof) {
-          return rows * std::log(rss) + std::log(rows) * dof;
-        };
-        take_refit = sane(dof_first) && sane(dof_refit) && rss_first > 0.0 && rss_refit > 0.0 &&
-                     bic(rss_refit, dof_refit) < bic(rss_first, dof_first) && !crossing(theta);
-      }
+      take_refit = lower_bic(*stage1, theta, *first_problem, first_theta) && !crossing(theta);
     }
     if (take_refit) {
       final_problem = std::move(stage1);

@@ -167,7 +167,8 @@ struct DampedModesResult {
                                     ///< and second-order terms), channel units
   Eigen::MatrixXd data;             ///< (T x C) filtered, decimated data at t_s, channel units
   MatrixPencilResult start;         ///< global matrix pencil over the fitted samples
-  double shape_weight = 0.0;        ///< shape-change penalty used
+  double shape_weight = 0.0;        ///< shape-change penalty used; 0: constant shapes (no
+                                    ///< shape stage, or the BIC kept the constant-shape fit)
   bool shape_refit = false;         ///< the shape refit replaced the constant-shape continuation's
                                     ///< result (track_roughness and shape_weight are the refit's)
   double track_roughness = 0.0;     ///< track roughness prior SD used, rad/s and 1/s
