@@ -11,7 +11,10 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <string>
+#include <tuple>
+#include <utility>
 
 #include "data/parallel.hpp"
 #include "estimators/cubic_bspline.hpp"
@@ -621,10 +624,14 @@ bool fit_size(const VpProblem& problem, const Eigen::VectorXd& theta, bool with_
 // not be nested, and on noise-free data both residuals lie far below the whitened noise level
 // (the arm's model error), where a variance floored at 1 would prefer the fit with fewer
 // parameters however much worse it fits (movement trials, docs/tfa_modal.md).
+// `b_size`, when given, is fit b's (RSS, dof) already known from fit_size.
 bool lower_bic(const VpProblem& a, const Eigen::VectorXd& theta_a, const VpProblem& b,
-               const Eigen::VectorXd& theta_b) {
+               const Eigen::VectorXd& theta_b,
+               std::optional<std::pair<double, double>> b_size = std::nullopt) {
   double rss_a = 0.0, dof_a = 0.0, rss_b = 0.0, dof_b = 0.0;
-  if (!fit_size(a, theta_a, true, rss_a, dof_a) || !fit_size(b, theta_b, true, rss_b, dof_b))
+  if (b_size) std::tie(rss_b, dof_b) = *b_size;
+  if (!fit_size(a, theta_a, true, rss_a, dof_a) ||
+      (!b_size && !fit_size(b, theta_b, true, rss_b, dof_b)))
     return false;
   const double rows = a.data_rows();
   auto sane = [&](double dof) { return std::isfinite(dof) && dof >= 0.0 && dof < rows; };
@@ -1034,6 +1041,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   TrackTies ties;
   double previous_rss = std::numeric_limits<double>::infinity();
   double previous_dof = 0.0;
+  bool previous_sized = false;  // previous_dof counted (fit_size with_dof)
   // Fits one candidate from `theta`; taken (stage1, theta, outcome, previous_*) when `accept`
   // says so for its RSS and effective parameters; false when it is not usable or not taken.
   auto try_candidate = [&](double roughness, const TrackTies& candidate_ties, bool with_dof,
@@ -1054,6 +1062,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     theta = candidate;
     previous_rss = rss;
     previous_dof = dof;
+    previous_sized = with_dof;
     return true;
   };
   auto rougher = [&](double rss, double dof, double price) {
@@ -1185,8 +1194,11 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     std::unique_ptr<VpProblem> constant_shapes = std::move(final_problem);
     const Eigen::VectorXd constant_theta = theta;
     const StageOutcome constant_outcome = outcome;
+    // The constant-shape fit is the last candidate taken: its size is known when it was counted.
+    std::optional<std::pair<double, double>> constant_size;
+    if (previous_sized) constant_size = std::make_pair(previous_rss, previous_dof);
     if (fit_design(d, result.track_roughness, final_problem) &&
-        lower_bic(*final_problem, theta, *constant_shapes, constant_theta)) {
+        lower_bic(*final_problem, theta, *constant_shapes, constant_theta, constant_size)) {
       result.shape_weight = d.weight;
     } else {
       final_problem = std::move(constant_shapes);
