@@ -627,8 +627,9 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                            prior_rows(track, modes, res["track_roughness"]), tie, so[0])
         theta2, usable, conv, nfev = solve(stage2, theta, o["max_iterations"])
         res["iterations"] += nfev
-        # Kept only when its BIC beats the constant shapes' (lower_bic in damped_modes.cpp).
-        if usable and lower_bic(stage2, theta2, final, theta):
+        # With the weight from the data, kept only when its BIC beats the constant shapes'
+        # (lower_bic in damped_modes.cpp).
+        if usable and (o["shape_weight"] >= 0 or lower_bic(stage2, theta2, final, theta)):
             theta, converged, final, res["shape_weight"] = theta2, conv, stage2, d["weight"]
         elif not usable:
             shape = None

@@ -1185,10 +1185,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   }
   std::unique_ptr<VpProblem> final_problem = std::move(stage1);
 
-  // Stage 2: slowly varying mode shapes, at the chosen tracks, kept only when they pay for their
-  // effective parameters (lower_bic, as the shape refit below): the shapes stay put when the
-  // data do not ask them to move. GCV's weight alone can let them absorb noise (10 dB trials,
-  // docs/tfa_modal.md).
+  // Stage 2: slowly varying mode shapes, at the chosen tracks. With the weight from the data they
+  // are kept only when they pay for their effective parameters (lower_bic, as the shape refit
+  // below): the shapes stay put when the data do not ask them to move. GCV's weight alone can
+  // let them absorb noise (10 dB trials, docs/tfa_modal.md). A weight given is the user's choice.
   if (outcome.usable && shapes) {
     const Design d = shape_design(*final_problem, theta, result.track_roughness);
     std::unique_ptr<VpProblem> constant_shapes = std::move(final_problem);
@@ -1198,7 +1198,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     std::optional<std::pair<double, double>> constant_size;
     if (previous_sized) constant_size = std::make_pair(previous_rss, previous_dof);
     if (fit_design(d, result.track_roughness, final_problem) &&
-        lower_bic(*final_problem, theta, *constant_shapes, constant_theta, constant_size)) {
+        (options.shape_weight >= 0.0 ||
+         lower_bic(*final_problem, theta, *constant_shapes, constant_theta, constant_size))) {
       result.shape_weight = d.weight;
     } else {
       final_problem = std::move(constant_shapes);

@@ -60,7 +60,9 @@ struct DampedModesOptions {
   double shape_knot_spacing_s = 0.5;    ///< knot spacing of the mode shapes a_jk(t), s; <= 0:
                                         ///< constant mode shapes
   double shape_weight = -1.0;           ///< lambda of the penalty on shape changes (whitened
-                                        ///< units, dimensionless); < 0: chosen by GCV
+                                        ///< units, dimensionless); < 0: chosen by GCV, and the
+                                        ///< varying shapes kept only when their BIC beats the
+                                        ///< constant shapes'
   double track_roughness = -1.0;        ///< prior SD of second differences of the omega (rad/s)
                                         ///< and alpha (1/s) spline coefficients; < 0: from the
                                         ///< data over 0.003 .. 3 (continuation smooth -> rough),
@@ -168,7 +170,8 @@ struct DampedModesResult {
   Eigen::MatrixXd data;             ///< (T x C) filtered, decimated data at t_s, channel units
   MatrixPencilResult start;         ///< global matrix pencil over the fitted samples
   double shape_weight = 0.0;        ///< shape-change penalty used; 0: constant shapes (no
-                                    ///< shape stage, or the BIC kept the constant-shape fit)
+                                    ///< shape stage, or, with the weight from the data, the BIC
+                                    ///< kept the constant-shape fit)
   bool shape_refit = false;         ///< the shape refit replaced the constant-shape continuation's
                                     ///< result (track_roughness and shape_weight are the refit's)
   double track_roughness = 0.0;     ///< track roughness prior SD used, rad/s and 1/s
