@@ -1153,7 +1153,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     TrackTies candidate = ties;
     TrackTie& tie = candidate[part];
     tie.scale.resize(modes);
-    const Eigen::Index before = 2 * modes * m + (part == 1 && ties[0].sd > 0.0 ? modes - 1 : 0);
+    const Eigen::Index before = stage1->first_ratio(part);  // with the ties taken so far
     Eigen::VectorXd tied(theta.size() + modes - 1);
     tied.head(before) = theta.head(before);
     tied.tail(theta.size() - before) = theta.tail(theta.size() - before);
