@@ -84,17 +84,28 @@ Errors track_errors(const DampedModesResult& r, int j, const ClosedFormMode& tru
   return e;
 }
 
-// Two modes 1 Hz apart (2.4 and 3.4 Hz), the decay of both following a sigmoid in time (k = 4/s,
-// centred 1 s into the response) that doubles it, as co-contraction would.
-std::vector<ClosedFormMode> close_modes(double weak_amplitude) {
-  auto mode = [](double f0, double alpha0, std::complex<double> a0, std::complex<double> a1) {
+// How both decay rates double during the record: along a sigmoid in time (k = 4/s, centred 1 s
+// into the response), as co-contraction would, or linearly over 2 s.
+enum class DecayChange { sigmoid, linear };
+
+// Two modes 1 Hz apart (2.4 and 3.4 Hz) whose decay rates double (DecayChange).
+std::vector<ClosedFormMode> close_modes(double weak_amplitude,
+                                        DecayChange change = DecayChange::sigmoid) {
+  auto mode = [change](double f0, double alpha0, std::complex<double> a0, std::complex<double> a1) {
     ClosedFormMode m;
     m.f_hz = [f0](double) { return f0; };
-    m.alpha_per_s = [alpha0](double tau) { return alpha0 * (1.0 + sigmoid(4.0 * (tau - 1.0))); };
-    m.phi = [f0, alpha0](double tau) {
-      return std::complex<double>(alpha0 * (tau + sigmoid_integral(tau, 4.0, 1.0)),
-                                  2.0 * M_PI * f0 * tau);
-    };
+    if (change == DecayChange::sigmoid) {
+      m.alpha_per_s = [alpha0](double tau) { return alpha0 * (1.0 + sigmoid(4.0 * (tau - 1.0))); };
+      m.phi = [f0, alpha0](double tau) {
+        return std::complex<double>(alpha0 * (tau + sigmoid_integral(tau, 4.0, 1.0)),
+                                    2.0 * M_PI * f0 * tau);
+      };
+    } else {
+      m.alpha_per_s = [alpha0](double tau) { return alpha0 * (1.0 + 0.5 * tau); };
+      m.phi = [f0, alpha0](double tau) {
+        return std::complex<double>(alpha0 * (tau + 0.25 * tau * tau), 2.0 * M_PI * f0 * tau);
+      };
+    }
     m.a0 = a0;
     m.a1 = a1;
     return m;
@@ -336,6 +347,39 @@ BOOST_AUTO_TEST_CASE(close_modes_with_a_weak_one_at_20_db_within_one_percent) {
   // Same seed, same bits (deterministic fit).
   const DampedModesResult again = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
   BOOST_CHECK(again.modes[1].alpha_per_s == r.modes[1].alpha_per_s);
+}
+
+BOOST_AUTO_TEST_CASE(decay_rates_of_close_modes_at_20_db_are_near_their_cramer_rao_bound) {
+  // The 1 % for the decay rates at 20 dB is below the information in the data for the
+  // weak mode whenever its decay changes at all: scripts/tfa_crb_tracks.py (numpy/scipy, an
+  // independent computation) gives the Cramer-Rao bound of any unbiased estimator of decay
+  // tracks linear in time, frequencies linear, constant shapes, RMS over 2.6-4.5 s of SD /
+  // |alpha|: 0.42 % (strong) and 1.95 % (weak) on this case (linear change; constant decay:
+  // 0.18 / 0.68 %). The default fit is held to twice the bound, RMS over eight noise draws.
+  const double bound[2] = {0.0042, 0.0195};
+  const std::vector<ClosedFormMode> modes = close_modes(0.26, DecayChange::linear);
+  const double weak = energy_fraction(modes, 1);
+  BOOST_REQUIRE(weak > 0.04 && weak < 0.06);
+  double sum[2] = {0.0, 0.0};
+  const int draws = 8;
+  for (int seed = 1; seed <= draws; ++seed) {
+    Eigen::MatrixXd x = response(modes);
+    add_noise(x, 20.0, static_cast<std::uint64_t>(seed));
+    const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
+    BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+    for (int j = 0; j < 2; ++j) {
+      const Errors e = track_errors(r, j, modes[j], 2.6, 4.5);
+      BOOST_TEST_MESSAGE("seed " << seed << ", mode " << j << ": f " << e.f_rel << ", alpha "
+                                 << e.alpha_rel);
+      BOOST_CHECK_SMALL(e.f_rel, 0.01);  // the frequencies meet the 1 %
+      sum[j] += e.alpha_rel * e.alpha_rel;
+    }
+  }
+  for (int j = 0; j < 2; ++j) {
+    const double rms = std::sqrt(sum[j] / draws);
+    BOOST_TEST_MESSAGE("mode " << j << ": RMS alpha error " << rms << ", bound " << bound[j]);
+    BOOST_CHECK_LE(rms, 2.0 * bound[j]);
+  }
 }
 
 BOOST_AUTO_TEST_CASE(decay_tie_is_taken_for_a_common_factor_and_refused_otherwise) {
