@@ -60,7 +60,7 @@ namespace stiffid::apps {
 namespace {
 
 struct TfaCommandOptions {
-  std::string design = "whole";
+  std::string design = "whole", mapping = "eq48";
   std::string trial_path, angles, forces, onset, method = "modal", baseline_path,
       subject_path, window = "kaiser:3", output_path, spectrogram_path;
   double sample_rate_hz = 0.0;  // --fs, Hz: for files without a t column (0: from t)
@@ -188,6 +188,13 @@ void run(TfaCommandOptions cli) {
   o.method = estimators::parse_tfa_method(cli.method);
   o.modes.design = estimators::parse_modal_design(cli.design);
   o.modes.shape_refit = !cli.no_shape_refit;
+  o.modal_parameters.mapping = estimators::parse_modal_mapping(cli.mapping);
+  if (o.modal_parameters.mapping != estimators::ModalMapping::paper_eq48 &&
+      o.method != estimators::TfaMethod::modal) {
+    throw InputError("--mapping " + cli.mapping +
+                     ": only the modal method has a state-space mapping (the spectrogram method "
+                     "uses eq 48)");
+  }
   if (!cli.spectrogram_path.empty() && o.method != estimators::TfaMethod::spectrogram) {
     throw InputError("--spectrogram: the time-frequency map exists only with --method spectrogram");
   }
@@ -257,7 +264,7 @@ void run(TfaCommandOptions cli) {
                            {"offsets", mo.offsets && mo.design == estimators::ModalDesign::whole},
                            {"second_order", r.modes.second_order_mode >= 0},
                            {"shape_refit", r.modes.shape_refit},
-                           {"mapping", "state_space"}});
+                           {"mapping", estimators::to_string(o.modal_parameters.mapping)}});
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
     out["converged"] = r.modes.converged;
     out["iterations"] = r.modes.iterations;
@@ -425,6 +432,11 @@ void add_tfa_command(CLI::App& app) {
                   "modal: whole (the whole free response at once, spline tracks) or sliding "
                   "(one fit per --sliding-window-s window around each sample, locally linear "
                   "tracks; docs/tfa_modal.md)")
+      ->capture_default_str();
+  sub->add_option("--mapping", cli->mapping,
+                  "modal: tracks and shapes to K(t), C(t): eq48 (Piovesan 2012 eq 48, real "
+                  "mode shapes) or state_space (complex shapes: exact for non-classical damping, "
+                  "but C then carries the noise of the shapes' phases; docs/tfa_modal.md)")
       ->capture_default_str();
   sub->add_option("--sliding-window-s", o.modes.sliding_window_s,
                   "modal, --design sliding: window length, s")

@@ -35,7 +35,7 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     do not cross;
     posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including the mode-to-data power and
     separation checks (damped_modes.cpp);
-  - eqs 45-46 and the state-space mapping to K(t), C(t), P(t) (modal_parameters.cpp), the
+  - eqs 45-46 and the eq-48 mapping to K(t), C(t), P(t) (modal_parameters.cpp), the
     per-time modal quantities and eq 49's normalized force (tfa.cpp, normalized_force.cpp);
   - JSON with the keys of `stiffid tfa` (apps/cmd_tfa.cpp), decay_ratio (rho_j per output mode,
     1 for the reference mode and without a tie) and options.decay_tie (the sd used, 0: none)
@@ -78,7 +78,7 @@ OPTIONS = dict(decimate_hz=200.0, skip_s=0.025, noise_window_s=1.0, knot_spacing
                shape_knot_spacing_s=0.5, shape_weight=-1.0, track_roughness=-1.0,
                decay_tie=0.0, init_window_s=0.5, anr_threshold_db=0.0,
                max_frequency_sd_hz=0.1, max_mode_to_data_db=20.0, min_mode_separation=0.01,
-               max_iterations=100)
+               max_iterations=100, mapping="eq48")
 PRE_ONSET_S, PULSE_S = 0.2, 0.02
 ROUGHNESS_GRID = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 TIE_GRID = (0.3, 0.1, 0.03, 0.01, 0.003)
@@ -775,8 +775,9 @@ def most_real(u):
     return v / np.linalg.norm(v, axis=-2, keepdims=True)
 
 
-def modal_parameters(tracks, mass):
-    """Eqs 45-46 and the state-space mapping, every time at once. mass (T, C, C)."""
+def modal_parameters(tracks, mass, mapping="eq48"):
+    """Eqs 45-46 and the eq-48 mapping (real P, the default) or the state-space one (mapping
+    "state_space"), every time at once. mass (T, C, C)."""
     w = np.stack([t["omega"] for t in tracks], axis=1)  # (T, n)
     a = np.stack([t["alpha"] for t in tracks], axis=1)
     w_dot = np.stack([t["omega_dot"] for t in tracks], axis=1)
@@ -784,19 +785,24 @@ def modal_parameters(tracks, mass):
     gamma = -a - w_dot / (2 * w)  # eq 45
     eta2 = w * w + a * a + a * w_dot / w - a_dot  # eq 46 (alpha dot)
     shapes = np.stack([t["shape"] for t in tracks], axis=2)  # (T, C, n)
-    mu = -gamma + 1j * np.sqrt(np.maximum(0.0, eta2 - gamma * gamma))
-    v_mu = shapes * mu[:, None, :]
-    x = np.concatenate([np.concatenate([shapes, shapes.conj()], axis=2),
-                        np.concatenate([v_mu, v_mu.conj()], axis=2)], axis=1)
-    y = np.concatenate([v_mu * mu[:, None, :], (v_mu * mu[:, None, :]).conj()], axis=2)
-    kc = -(mass @ y @ np.linalg.inv(x)).real
     n = shapes.shape[2]
-    k, c = kc[:, :, :n], kc[:, :, n:]
-    k = 0.5 * (k + np.swapaxes(k, 1, 2))
-    c = 0.5 * (c + np.swapaxes(c, 1, 2))
     root = spd_sqrt(mass)
     uu, _, vv = np.linalg.svd(most_real(root @ shapes))
-    p = uu @ vv
+    p = uu @ vv  # nearest orthogonal matrix (eq 43)
+    if mapping == "state_space":
+        mu = -gamma + 1j * np.sqrt(np.maximum(0.0, eta2 - gamma * gamma))
+        v_mu = shapes * mu[:, None, :]
+        x = np.concatenate([np.concatenate([shapes, shapes.conj()], axis=2),
+                            np.concatenate([v_mu, v_mu.conj()], axis=2)], axis=1)
+        y = np.concatenate([v_mu * mu[:, None, :], (v_mu * mu[:, None, :]).conj()], axis=2)
+        kc = -(mass @ y @ np.linalg.inv(x)).real
+        k, c = kc[:, :, :n], kc[:, :, n:]
+    else:  # eq 48: M^1/2 P diag(eta^2) P^T M^1/2, M^1/2 P diag(2 Gamma) P^T M^1/2
+        pt = np.swapaxes(p, 1, 2)
+        k = root @ (p * eta2[:, None, :]) @ pt @ root
+        c = root @ (p * (2.0 * gamma)[:, None, :]) @ pt @ root
+    k = 0.5 * (k + np.swapaxes(k, 1, 2))
+    c = 0.5 * (c + np.swapaxes(c, 1, 2))
     valid = np.all([t["valid"] for t in tracks], axis=0) & np.all(eta2 > gamma * gamma, axis=1)
     finite = np.isfinite(k).all(axis=(1, 2)) & np.isfinite(c).all(axis=(1, 2))
     pos = np.zeros(k.shape[0], bool)
@@ -840,7 +846,7 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
     rows = np.clip(np.array([lround(v) for v in (times - start_s) * fs]), 0, dev.shape[0] - 1)
     th2 = np.full(rows.size, posture[1])
     mass = np.array([inertia(v) for v in th2])
-    par = modal_parameters(tracks, mass)
+    par = modal_parameters(tracks, mass, o["mapping"])
 
     omega = np.stack([tr["omega"] for tr in tracks], axis=1)
     alpha = np.stack([tr["alpha"] for tr in tracks], axis=1)
@@ -892,7 +898,7 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
                        "decay_tie": fit["decay_tie"],
                        "decay_tie_from_data": OPTIONS["decay_tie"] < 0,
                        "shape_refit": bool(fit["shape_refit"]),
-                       "mapping": "state_space"},
+                       "mapping": OPTIONS["mapping"]},
            "residual_rms_whitened": fit["residual_rms_whitened"], "converged": bool(fit["converged"]),
            "noise_covariance_rad2": fit["noise_cov"].tolist(),
            "onset_s": onset_s, "free_start_s": free_start_s,

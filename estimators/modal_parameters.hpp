@@ -12,6 +12,7 @@
 // eta^2 = 0, i.e. "- alpha dot", which is used here.
 
 #include <Eigen/Core>
+#include <string>
 #include <vector>
 
 #include "estimators/damped_modes.hpp"
@@ -19,19 +20,31 @@
 namespace stiffid::estimators {
 
 enum class ModalMapping {
-  /// Eq 48: real eigenvector matrix P from the mode shapes normalized by M^1/2 (each rotated to its
-  /// most real phase, eqs 38-41, then the nearest orthogonal matrix, eq 43), K = M^1/2 P
-  /// diag(eta^2) P^T M^1/2 and C = M^1/2 P diag(2 Gamma) P^T M^1/2. Exact for classical damping.
+  /// Eq 48 (the default): real eigenvector matrix P from the mode shapes normalized by M^1/2 (each
+  /// rotated to its most real phase, eqs 38-41, then the nearest orthogonal matrix, eq 43), K =
+  /// M^1/2 P diag(eta^2) P^T M^1/2 and C = M^1/2 P diag(2 Gamma) P^T M^1/2. Exact for classical
+  /// damping; the shapes' non-classical phases are dropped, which keeps their noise out of C.
   paper_eq48,
   /// Second-order inverse eigenproblem: with the effective poles mu_j = -Gamma_j +
   /// i sqrt(eta_j^2 - Gamma_j^2) and complex mode shapes V (C x n, n = C), the state matrix has
   /// eigenvectors [V; V mu], so [K C] = -M [V mu^2, conj] [[V, conj], [V mu, conj]]^-1 (real
-  /// part). Reduces to eq 48 for classical damping; exact for non-classical (eq 55) damping too.
+  /// part). Reduces to eq 48 for classical damping; exact for non-classical (eq 55) damping too,
+  /// but C then rests on the shapes' phases, and their noise (docs/tfa_modal.md, "Mapping").
   state_space,
 };
 
+/// "eq48" or "state_space"; throws InputError otherwise. (Inline: the command line parses it.)
+inline ModalMapping parse_modal_mapping(const std::string& text) {
+  if (text == "eq48") return ModalMapping::paper_eq48;
+  if (text == "state_space") return ModalMapping::state_space;
+  throw InputError("--mapping: unknown mapping '" + text + "'; expected eq48 or state_space");
+}
+inline std::string to_string(ModalMapping mapping) {
+  return mapping == ModalMapping::state_space ? "state_space" : "eq48";
+}
+
 struct ModalParametersOptions {
-  ModalMapping mapping = ModalMapping::state_space;
+  ModalMapping mapping = ModalMapping::paper_eq48;
   bool symmetrize = true;  ///< report (K + K^T)/2 and (C + C^T)/2 (a passive network is symmetric)
 };
 

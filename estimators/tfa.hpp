@@ -4,7 +4,7 @@
 // Savitzky-Golay smoothing (4), modal analysis (5) and normalised force (6); or, by default, the
 // parametric `modal` method (issue 7, docs/tfa_modal.md): damped modes with shared time-varying
 // frequency and decay fitted to the whole free response (damped_modes.hpp) in place of stages 2-4,
-// and the state-space inverse eigenproblem (modal_parameters.hpp) for stage 5.
+// and eq 48 (or the state-space inverse eigenproblem; modal_parameters.hpp) for stage 5.
 
 #include <string>
 

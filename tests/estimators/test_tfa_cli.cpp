@@ -37,6 +37,13 @@ int run(const std::string& args, std::string& err) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+// The JSON document in `path` (a failed parse fails the test with the file's name).
+nlohmann::json read_json(const fs::path& path) {
+  std::ifstream in(path);
+  BOOST_REQUIRE_MESSAGE(in, "cannot open " << path);
+  return nlohmann::json::parse(in);
+}
+
 fs::path scratch(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / ("stiffid_tfa_cli_" + std::to_string(::getpid()));
   fs::create_directories(dir);
@@ -51,8 +58,7 @@ BOOST_AUTO_TEST_CASE(writes_the_documented_keys_with_auto_onset) {
   BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset auto --forces fx,fy -o " +
                           out.string() + " --method spectrogram --spectrogram " + map.string()),
                       0);
-  std::ifstream in(out);
-  const nlohmann::json j = nlohmann::json::parse(in);
+  const nlohmann::json j = read_json(out);
   for (const char* key : {"t_s", "f_hz", "amplitude", "alpha_per_s", "K_nm_per_rad",
                           "C_nms_per_rad", "eigenvectors", "normalized_force", "options"}) {
     BOOST_CHECK_MESSAGE(j.contains(key), key);
@@ -82,8 +88,7 @@ BOOST_AUTO_TEST_CASE(chirped_frame_fits_are_the_default_of_the_spectrogram_metho
   const std::string common = kTrial + " --angles th1,th2 --onset 2.5 --method spectrogram -o ";
   BOOST_REQUIRE_EQUAL(run(common + chirped.string()), 0);
   BOOST_REQUIRE_EQUAL(run(common + stationary.string() + " --chirp false"), 0);
-  std::ifstream a(stationary), b(chirped);
-  const nlohmann::json s = nlohmann::json::parse(a), c = nlohmann::json::parse(b);
+  const nlohmann::json s = read_json(stationary), c = read_json(chirped);
   BOOST_CHECK(!s["options"]["chirp"].get<bool>());
   BOOST_CHECK(c["options"]["chirp"].get<bool>());
   BOOST_REQUIRE_EQUAL(c["t_s"].size(), s["t_s"].size());
@@ -101,8 +106,7 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --decimate-hz 200 --knots-s 0.1 -o " +
                           out.string()),
                       0);
-  std::ifstream in(out);
-  const nlohmann::json j = nlohmann::json::parse(in);
+  const nlohmann::json j = read_json(out);
   BOOST_CHECK_EQUAL(j["method"], "modal");
   for (const char* key : {"t_s", "f_hz", "amplitude", "alpha_per_s", "gamma_per_s",
                           "eta_squared_per_s2", "K_nm_per_rad", "C_nms_per_rad", "eigenvectors",
@@ -141,8 +145,7 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
     BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --frequency-tie -1 -o " +
                             tied.string()),
                         0);
-    std::ifstream tied_in(tied);
-    const nlohmann::json t = nlohmann::json::parse(tied_in);
+    const nlohmann::json t = read_json(tied);
     BOOST_CHECK(t["options"]["frequency_tie_from_data"].get<bool>());
     BOOST_CHECK_GT(t["options"]["frequency_tie"].get<double>(), 0.0);
     const double ratio = t["frequency_ratio"][1].get<double>();
@@ -167,14 +170,33 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   BOOST_CHECK(!fs::exists(map));
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --method wavelet"), 2);
   BOOST_CHECK_EQUAL(j["options"]["design"], "whole");
+  // K, C by eq 48 by default; the state-space mapping on request, from the same tracks. The
+  // damping of the noise-free constant-K trial is classical: both give K0 within 1 %.
+  BOOST_CHECK_EQUAL(j["options"]["mapping"], "eq48");
+  const fs::path exact = scratch("state_space.json");
+  BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --mapping state_space -o " +
+                          exact.string()),
+                      0);
+  const nlohmann::json e = read_json(exact);
+  BOOST_CHECK_EQUAL(e["options"]["mapping"], "state_space");
+  BOOST_CHECK(e["f_hz"] == j["f_hz"]);
+  BOOST_CHECK(e["K_nm_per_rad"] != j["K_nm_per_rad"]);
+  BOOST_CHECK_CLOSE(e["K_nm_per_rad"][0][1][frames / 2].get<double>(), 5.0, 1.0);
+  BOOST_CHECK_CLOSE(j["K_nm_per_rad"][0][1][frames / 2].get<double>(), 5.0, 1.0);
+  std::string err;
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --mapping complex", err), 2);
+  BOOST_CHECK_MESSAGE(err.find("--mapping") != std::string::npos, err);
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --method spectrogram --mapping "
+                             "state_space", err),
+                    2);
+  BOOST_CHECK_MESSAGE(err.find("only the modal method") != std::string::npos, err);
   // Design (a), sliding windows: the same keys, estimates from half a window after the first
   // fitted sample to half a window before the last.
   const fs::path sliding = scratch("sliding.json");
   BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --design sliding "
                           "--sliding-window-s 0.5 -o " + sliding.string()),
                       0);
-  std::ifstream sin(sliding);
-  const nlohmann::json s = nlohmann::json::parse(sin);
+  const nlohmann::json s = read_json(sliding);
   BOOST_CHECK_EQUAL(s["options"]["design"], "sliding");
   BOOST_CHECK_CLOSE(s["options"]["sliding_window_s"].get<double>(), 0.5, 1e-12);
   BOOST_CHECK_CLOSE(s["t_s"][0].get<double>() - j["t_s"][0].get<double>(), 0.25, 1e-6);
@@ -189,8 +211,7 @@ BOOST_AUTO_TEST_CASE(auto_onset_defaults_to_the_fx_fy_channels) {
   const fs::path out = scratch("auto.json");
   BOOST_REQUIRE_EQUAL(
       run(kTrial + " --angles th1,th2 --onset auto --method spectrogram -o " + out.string()), 0);
-  std::ifstream in(out);
-  const nlohmann::json j = nlohmann::json::parse(in);
+  const nlohmann::json j = read_json(out);
   BOOST_CHECK_CLOSE(j["onset_s"].get<double>(), 2.5, 1e-6);
   BOOST_CHECK(j["options"]["forces"] == nlohmann::json({"fx", "fy"}));
   // A trial without them: exit 2, no output. The same record with the force columns dropped.
@@ -244,8 +265,7 @@ BOOST_AUTO_TEST_CASE(angles_recorded_in_degrees_are_converted_other_units_refuse
   const std::string args = " --angles th1,th2 --onset 2.5 --method spectrogram -o ";
   BOOST_REQUIRE_EQUAL(run(kTrial + args + from_rad.string()), 0);
   BOOST_REQUIRE_EQUAL(run(deg.string() + args + from_deg.string()), 0);
-  std::ifstream rad_in(from_rad), deg_in(from_deg);
-  const nlohmann::json a = nlohmann::json::parse(rad_in), b = nlohmann::json::parse(deg_in);
+  const nlohmann::json a = read_json(from_rad), b = read_json(from_deg);
   const std::size_t frames = a["t_s"].size();
   BOOST_REQUIRE_EQUAL(b["t_s"].size(), frames);
   for (int r = 0; r < 2; ++r) {
@@ -277,9 +297,7 @@ BOOST_AUTO_TEST_CASE(subject_from_arm_parameters_or_a_simulation_spec) {
   BOOST_REQUIRE_EQUAL(run(kTrial + args + a.string() + " --subject " + flat.string()), 0);
   BOOST_REQUIRE_EQUAL(run(kTrial + args + b.string() + " --subject " + sim.string()), 0);
   BOOST_REQUIRE_EQUAL(run(kTrial + args + d.string()), 0);
-  std::ifstream ia(a), ib(b), id(d);
-  const nlohmann::json ja = nlohmann::json::parse(ia), jb = nlohmann::json::parse(ib),
-                       jd = nlohmann::json::parse(id);
+  const nlohmann::json ja = read_json(a), jb = read_json(b), jd = read_json(d);
   BOOST_CHECK(ja["options"]["arm"] == jb["options"]["arm"]);
   BOOST_CHECK_EQUAL(jb["options"]["arm"]["l1_m"].get<double>(), 0.31);
   BOOST_CHECK(ja["M_kg_m2"] == jb["M_kg_m2"]);
@@ -306,8 +324,7 @@ BOOST_AUTO_TEST_CASE(a_trial_without_time_column_needs_fs) {
   BOOST_CHECK_EQUAL(run(untimed.string() + args + b.string() + " --onset 0.5"), 2);
   BOOST_CHECK(!fs::exists(b));
   BOOST_REQUIRE_EQUAL(run(untimed.string() + args + b.string() + " --onset 0.5 --fs 2000"), 0);
-  std::ifstream ia(a), ib(b);
-  const nlohmann::json ja = nlohmann::json::parse(ia), jb = nlohmann::json::parse(ib);
+  const nlohmann::json ja = read_json(a), jb = read_json(b);
   BOOST_REQUIRE_EQUAL(ja["t_s"].size(), jb["t_s"].size());
   BOOST_CHECK_CLOSE(jb["t_s"][0].get<double>() + 2.0, ja["t_s"][0].get<double>(), 1e-9);
   const std::size_t mid = ja["t_s"].size() / 2;

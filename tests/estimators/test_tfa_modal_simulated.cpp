@@ -105,8 +105,8 @@ BOOST_AUTO_TEST_CASE(constant_and_sigmoid_stiffness_at_20_db_three_noise_seeds) 
   // Issue 7's targets at 20 dB: over 2.6-3.175 s k11 <= 5 %, k12 <= 10 %, k22 <= 5 %; over
   // 2.6-4.5 s k11 <= 7.5 %, k12 <= 10 %, k22 <= 10 %, c11 <= 30 %, c12 and c22 <= 35 %.
   // Checked for every noise seed 1-3 at 45, 90 and 135 degrees (since the posture offsets and the
-  // quadratic distortion of 2026-12-02), except c12 with sigmoid K at 45 degrees: NOT met there
-  // (42-84 %), only printed; see docs/tfa_modal.md, "What limits it".
+  // quadratic distortion of 2026-12-02; c12 with sigmoid K at 45 degrees since K, C come from
+  // eq 48 by default, 2026-12-03: 7.1-11.6 %, 42-84 % by the state-space mapping).
   for (const m::ProfileKind profile : {m::ProfileKind::constant, m::ProfileKind::sigmoid}) {
     for (const double direction : {45.0, 90.0, 135.0}) {
       for (const unsigned seed : {1u, 2u, 3u}) {
@@ -123,9 +123,7 @@ BOOST_AUTO_TEST_CASE(constant_and_sigmoid_stiffness_at_20_db_three_noise_seeds) 
         BOOST_CHECK_LE(percent_rms_error(c, true, 1, 1, 2.6, 4.5), 35.0);
         BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 3.175), 10.0);
         BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 10.0);
-        if (profile == m::ProfileKind::constant || direction > 60.0) {
-          BOOST_CHECK_LE(percent_rms_error(c, true, 0, 1, 2.6, 4.5), 35.0);
-        }
+        BOOST_CHECK_LE(percent_rms_error(c, true, 0, 1, 2.6, 4.5), 35.0);
         // Per-mode validity is reported; the strong mode is valid over the whole fit, and K(t)
         // on at least 90 % of 2.6-4.5 s (the validity checks do not reject good fits).
         Eigen::Index valid = 0;
@@ -134,6 +132,28 @@ BOOST_AUTO_TEST_CASE(constant_and_sigmoid_stiffness_at_20_db_three_noise_seeds) 
         BOOST_CHECK_GE(k_valid_share(c, 2.6, 4.5), 0.9);
       }
     }
+  }
+}
+
+BOOST_AUTO_TEST_CASE(eq_48_keeps_the_shapes_phase_noise_out_of_the_damping) {
+  // Sigmoid K at 45 degrees, 20 dB, seed 1: the same fit mapped to K, C both ways. The damping
+  // is classical (C0 and K0 u(t) commute through M^-1), so both mappings are exact on exact
+  // tracks; on noisy ones the state-space mapping's C rests on the weak mode's phase between the
+  // joints, which the 45-degree pulse hardly excites. c12: 7.1 % (eq 48) against 80 %.
+  est::TfaOptions state_space = default_options();
+  state_space.modal_parameters.mapping = est::ModalMapping::state_space;
+  const m::TrialSpec spec = m::piovesan_impulse_trial(
+      m::TaskKind::posture, m::ProfileKind::sigmoid, m::ProfileKind::constant, M_PI / 4.0);
+  const Case eq48 = run_spec(spec, 20.0, 1);
+  const Case exact = run_spec(spec, 20.0, 1, state_space);
+  BOOST_REQUIRE(eq48.tfa.status.ok && exact.tfa.status.ok);
+  BOOST_TEST_MESSAGE("eq 48:" << report(eq48) << "; state space:" << report(exact));
+  BOOST_CHECK_LE(percent_rms_error(eq48, true, 0, 1, 2.6, 4.5), 35.0);
+  BOOST_CHECK_GT(percent_rms_error(exact, true, 0, 1, 2.6, 4.5), 35.0);
+  // K hardly depends on the mapping: the stiffness targets hold either way.
+  for (const Case* c : {&eq48, &exact}) {
+    BOOST_CHECK_LE(percent_rms_error(*c, false, 0, 1, 2.6, 4.5), 10.0);
+    BOOST_CHECK_LE(percent_rms_error(*c, false, 1, 1, 2.6, 4.5), 10.0);
   }
 }
 
