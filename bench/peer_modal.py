@@ -35,7 +35,8 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     do not cross;
     posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including the mode-to-data power and
     separation checks (damped_modes.cpp);
-  - eqs 45-46 and the eq-48 mapping to K(t), C(t), P(t) (modal_parameters.cpp), the
+  - eqs 45-46 and the eq-48 mapping to K(t), C(t), P(t), a lost mode's column of P completed from
+    the valid ones (modal_parameters.cpp), the
     per-time modal quantities and eq 49's normalized force (tfa.cpp, normalized_force.cpp);
   - JSON with the keys of `stiffid tfa` (apps/cmd_tfa.cpp), decay_ratio (rho_j per output mode,
     1 for the reference mode and without a tie) and options.decay_tie (the sd used, 0: none)
@@ -787,8 +788,25 @@ def modal_parameters(tracks, mass, mapping="eq48"):
     shapes = np.stack([t["shape"] for t in tracks], axis=2)  # (T, C, n)
     n = shapes.shape[2]
     root = spd_sqrt(mass)
-    uu, _, vv = np.linalg.svd(most_real(root @ shapes))
+    raw = most_real(root @ shapes)
+    uu, _, vv = np.linalg.svd(raw)
     p = uu @ vv  # nearest orthogonal matrix (eq 43)
+    # where some modes are valid and others not, the valid ones fix P; the others are completed
+    # in their orthogonal complement (modal_parameters.cpp, orthonormal_shapes)
+    mode_valid = np.stack([t["valid"] for t in tracks], axis=1)  # (T, n)
+    for i in np.nonzero(mode_valid.any(axis=1) & ~mode_valid.all(axis=1))[0]:
+        kept, lost = np.nonzero(mode_valid[i])[0], np.nonzero(~mode_valid[i])[0]
+        ug, _, vg = np.linalg.svd(raw[i][:, kept], full_matrices=False)
+        u = ug @ vg
+        rest = raw[i][:, lost] - u @ (u.T @ raw[i][:, lost])
+        if np.linalg.norm(rest, axis=0).min() > 1e-9:
+            ur, _, vr = np.linalg.svd(rest, full_matrices=False)
+            completion = ur @ vr
+        else:
+            completion = np.linalg.svd(u)[0][:, len(kept):]
+        p[i][:, kept] = u
+        signs = np.where(np.sum(completion * raw[i][:, lost], axis=0) < 0.0, -1.0, 1.0)
+        p[i][:, lost] = completion * signs
     if mapping == "state_space":
         mu = -gamma + 1j * np.sqrt(np.maximum(0.0, eta2 - gamma * gamma))
         v_mu = shapes * mu[:, None, :]

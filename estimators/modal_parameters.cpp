@@ -6,6 +6,7 @@
 #include <cmath>
 #include <complex>
 #include <string>
+#include <vector>
 
 #include "data/error.hpp"
 #include "models/arm.hpp"
@@ -23,14 +24,52 @@ Eigen::VectorXd most_real(const Eigen::VectorXcd& u) {
   return v / v.norm();
 }
 
+// Nearest matrix with orthonormal columns to `raw` (C x k, k <= C): the polar factor U V^T (eq 43).
+Eigen::MatrixXd polar_factor(const Eigen::MatrixXd& raw) {
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(raw, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  return svd.matrixU() * svd.matrixV().transpose();
+}
+
+// Eq 43's orthonormal P from the real shapes (columns of `raw`). When some modes are valid and
+// others not (a mode sunk into the noise: its shape is the splines' extrapolation), the valid
+// modes' columns alone fix their part of P (their polar factor) and the others are completed in
+// its orthogonal complement: their shapes projected onto it (polar factor there), or, when the
+// projection vanishes, the complement's basis. With all or none valid, the polar factor of all.
+Eigen::MatrixXd orthonormal_shapes(const Eigen::MatrixXd& raw, const std::vector<bool>& valid) {
+  const int n = static_cast<int>(raw.cols());
+  std::vector<int> kept, lost;
+  for (int j = 0; j < n; ++j) (valid[j] ? kept : lost).push_back(j);
+  if (kept.empty() || lost.empty()) return polar_factor(raw);
+  Eigen::MatrixXd good(raw.rows(), kept.size()), rest(raw.rows(), lost.size());
+  for (std::size_t i = 0; i < kept.size(); ++i) good.col(i) = raw.col(kept[i]);
+  for (std::size_t i = 0; i < lost.size(); ++i) rest.col(i) = raw.col(lost[i]);
+  const Eigen::MatrixXd u = polar_factor(good);
+  rest -= u * (u.transpose() * rest);  // into the complement of the valid modes' span
+  Eigen::MatrixXd completion;
+  if (rest.colwise().norm().minCoeff() > 1e-9) {
+    completion = polar_factor(rest);
+  } else {
+    const Eigen::JacobiSVD<Eigen::MatrixXd> full(u, Eigen::ComputeFullU);
+    completion = full.matrixU().rightCols(lost.size());
+  }
+  Eigen::MatrixXd p(raw.rows(), n);
+  for (std::size_t i = 0; i < kept.size(); ++i) p.col(kept[i]) = u.col(i);
+  for (std::size_t i = 0; i < lost.size(); ++i) {
+    // the lost shape's sign kept (eq 48 does not depend on it; the JSON's eigenvectors do)
+    const double sign = completion.col(i).dot(raw.col(lost[i])) < 0.0 ? -1.0 : 1.0;
+    p.col(lost[i]) = sign * completion.col(i);
+  }
+  return p;
+}
+
 void mapping_eq48(const Eigen::MatrixXd& m_half, const Eigen::MatrixXcd& shapes,
-                  const Eigen::VectorXd& eta2, const Eigen::VectorXd& gamma, Eigen::MatrixXd& p,
-                  Eigen::MatrixXd& k, Eigen::MatrixXd& c) {
+                  const std::vector<bool>& valid, const Eigen::VectorXd& eta2,
+                  const Eigen::VectorXd& gamma, Eigen::MatrixXd& p, Eigen::MatrixXd& k,
+                  Eigen::MatrixXd& c) {
   const int n = static_cast<int>(shapes.cols());
   Eigen::MatrixXd raw(shapes.rows(), n);
   for (int j = 0; j < n; ++j) raw.col(j) = most_real(m_half.cast<Complex>() * shapes.col(j));
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(raw, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  p = svd.matrixU() * svd.matrixV().transpose();  // nearest orthogonal matrix (eq 43: P^T P = I)
+  p = orthonormal_shapes(raw, valid);  // eq 43: P^T P = I
   k = m_half * p * eta2.asDiagonal() * p.transpose() * m_half;
   c = m_half * p * (2.0 * gamma).asDiagonal() * p.transpose() * m_half;
 }
@@ -54,8 +93,7 @@ void mapping_state_space(const Eigen::MatrixXd& m_half, const Eigen::MatrixXd& i
   c = kc.rightCols(n);
   Eigen::MatrixXd raw(shapes.rows(), n);
   for (int j = 0; j < n; ++j) raw.col(j) = most_real(m_half.cast<Complex>() * shapes.col(j));
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(raw, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  p = svd.matrixU() * svd.matrixV().transpose();
+  p = polar_factor(raw);
 }
 
 }  // namespace
@@ -89,6 +127,7 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
     if (i == 0 || inertia_kg_m2.size() > 1) m_half = models::spd_sqrt(inertia);
     Eigen::MatrixXcd shapes(c, n);
     Eigen::VectorXd gamma(n), eta2(n);
+    std::vector<bool> mode_valid(n);
     bool valid = true;
     for (int j = 0; j < n; ++j) {
       const ModeTrack& mt = modes.modes[j];
@@ -97,13 +136,14 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
       gamma(j) = -a - w_dot / (2.0 * w);                    // eq 45
       eta2(j) = w * w + a * a + a * w_dot / w - a_dot;     // eq 46 (alpha dot, see header)
       shapes.col(j) = mt.shape.row(i).transpose();
+      mode_valid[j] = mt.valid(i);
       valid = valid && mt.valid(i) && eta2(j) > gamma(j) * gamma(j);
     }
     r.gamma_per_s.col(i) = gamma;
     r.eta_squared_rad2_per_s2.col(i) = eta2;
     Eigen::MatrixXd p, k, d;
     if (options.mapping == ModalMapping::paper_eq48)
-      mapping_eq48(m_half, shapes, eta2, gamma, p, k, d);
+      mapping_eq48(m_half, shapes, mode_valid, eta2, gamma, p, k, d);
     else
       mapping_state_space(m_half, inertia, shapes, eta2, gamma, p, k, d);
     if (options.symmetrize) {
