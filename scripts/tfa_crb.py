@@ -72,6 +72,18 @@ def eigen_modes(K, C, M):
     return w[keep], v[:2, keep]
 
 
+def central_gradient(fn, x, rel_step=1e-6):
+    """Jacobian of the vector function fn at x by central differences (steps rel_step max(1, |x|))."""
+    columns = []
+    for p in range(x.size):
+        h = rel_step * max(1.0, abs(x[p]))
+        up, dn = x.copy(), x.copy()
+        up[p] += h
+        dn[p] -= h
+        columns.append((fn(up) - fn(dn)) / (2 * h))
+    return np.stack(columns, axis=-1)
+
+
 def basis(lam, tau):
     """(N x 2) columns exp(lambda_j tau)."""
     return np.exp(np.outer(tau, lam))
@@ -146,13 +158,7 @@ def crb(clean, noise, K, C, M, onset_s, free_s):
     W = np.linalg.inv(noise)
     F = np.einsum("tip,ij,tjq->pq", J, W, J)
     cov = np.linalg.inv(F)
-    g = np.empty((len(NAMES), theta.size))
-    for p in range(theta.size):
-        hp = 1e-6 * max(1.0, abs(theta[p]))
-        up, dn = theta.copy(), theta.copy()
-        up[p] += hp
-        dn[p] -= hp
-        g[:, p] = (coefficients(up, M) - coefficients(dn, M)) / (2 * hp)
+    g = central_gradient(lambda x: coefficients(x, M), theta)
     true = coefficients(theta, M)
     sd = np.sqrt(np.einsum("kp,pq,kq->k", g, cov, g))
     peak = np.max(np.abs(dev[m]), axis=0)
@@ -317,13 +323,7 @@ def crb_tracks(clean, truth, noise, family, onset_s, free_s, score=(2.6, 4.5)):
             [np.concatenate([[B[i] @ c.real, dB[i] @ c.real, B[i] @ c.imag, dB[i] @ c.imag]
                              for c in coef]),
              np.column_stack([a.real.ravel(), a.imag.ravel()]).ravel()])
-        g_local = np.empty((len(NAMES), local.size))
-        for p in range(local.size):
-            hp = 1e-6 * max(1.0, abs(local[p]))
-            up, dn = local.copy(), local.copy()
-            up[p] += hp
-            dn[p] -= hp
-            g_local[:, p] = (modal_coefficients(up, Mi) - modal_coefficients(dn, Mi)) / (2 * hp)
+        g_local = central_gradient(lambda x: modal_coefficients(x, Mi), local)
         g = np.zeros((len(NAMES), cov.shape[0]))  # the extra terms do not enter K, C
         for j in range(2):
             o = j * (2 * n + 4)

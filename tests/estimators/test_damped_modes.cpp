@@ -120,6 +120,16 @@ double energy_fraction(const std::vector<ClosedFormMode>& modes, int j) {
   return one.squaredNorm() / all.squaredNorm();
 }
 
+// Fit of `modes` with white noise at snr_db (noise seed `seed`); the fit must succeed.
+DampedModesResult fit_noisy(const std::vector<ClosedFormMode>& modes, double snr_db,
+                            std::uint64_t seed, const DampedModesOptions& options) {
+  Eigen::MatrixXd x = response(modes);
+  add_noise(x, snr_db, seed);
+  DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, options);
+  BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+  return r;
+}
+
 // Two modes 1 Hz apart whose tracks the cubic splines represent exactly: omega_j constant,
 // alpha_j linear in time.
 std::pair<ClosedFormMode, ClosedFormMode> spline_exact_modes() {
@@ -363,10 +373,8 @@ BOOST_AUTO_TEST_CASE(decay_rates_of_close_modes_at_20_db_are_near_their_cramer_r
   double sum[2] = {0.0, 0.0};
   const int draws = 8;
   for (int seed = 1; seed <= draws; ++seed) {
-    Eigen::MatrixXd x = response(modes);
-    add_noise(x, 20.0, static_cast<std::uint64_t>(seed));
-    const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
-    BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+    const DampedModesResult r =
+        fit_noisy(modes, 20.0, static_cast<std::uint64_t>(seed), DampedModesOptions{});
     for (int j = 0; j < 2; ++j) {
       const Errors e = track_errors(r, j, modes[j], 2.6, 4.5);
       BOOST_TEST_MESSAGE("seed " << seed << ", mode " << j << ": f " << e.f_rel << ", alpha "
@@ -416,10 +424,7 @@ BOOST_AUTO_TEST_CASE(decay_tie_is_taken_for_a_common_factor_and_refused_otherwis
     modes[1].phi = [](double tau) {
       return std::complex<double>(-1.3 * tau, 2.0 * M_PI * 3.4 * tau);
     };
-    Eigen::MatrixXd x = response(modes);
-    add_noise(x, 20.0, 11);
-    const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, from_data);
-    BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+    const DampedModesResult r = fit_noisy(modes, 20.0, 11, from_data);
     BOOST_TEST_MESSAGE("untied truth: energy of mode 2 " << energy_fraction(modes, 1)
                                                          << ", tie SD " << r.decay_tie);
     BOOST_CHECK(r.decay_tie == 0.0 || r.decay_tie >= 0.1);
@@ -494,10 +499,7 @@ BOOST_AUTO_TEST_CASE(frequency_tie_is_taken_for_a_common_factor_and_refused_othe
   // frequencies stay within 1 %.
   {
     const std::vector<ClosedFormMode> modes = rising_modes(0.8, 0.0, 0.4);
-    Eigen::MatrixXd x = response(modes);
-    add_noise(x, 20.0, 11);
-    const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, from_data);
-    BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+    const DampedModesResult r = fit_noisy(modes, 20.0, 11, from_data);
     BOOST_TEST_MESSAGE("untied truth: energy of mode 2 " << energy_fraction(modes, 1)
                                                          << ", tie SD " << r.frequency_tie);
     BOOST_CHECK(r.frequency_tie == 0.0 || r.frequency_tie >= 0.1);
