@@ -24,6 +24,9 @@ enum class ModalMapping {
   /// rotated to its most real phase, eqs 38-41, then the nearest orthogonal matrix, eq 43), K =
   /// M^1/2 P diag(eta^2) P^T M^1/2 and C = M^1/2 P diag(2 Gamma) P^T M^1/2. Exact for classical
   /// damping; the shapes' non-classical phases are dropped, which keeps their noise out of C.
+  /// At a time where some modes are flagged invalid (sunk into the noise), P's columns for the
+  /// valid modes come from their shapes alone and the others complete them in the orthogonal
+  /// complement, not from their extrapolated shapes (docs/tfa_modal.md, "A lost mode's shape").
   paper_eq48,
   /// Second-order inverse eigenproblem: with the effective poles mu_j = -Gamma_j +
   /// i sqrt(eta_j^2 - Gamma_j^2) and complex mode shapes V (C x n, n = C), the state matrix has
