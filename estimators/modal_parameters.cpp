@@ -24,6 +24,15 @@ Eigen::VectorXd most_real(const Eigen::VectorXcd& u) {
   return v / v.norm();
 }
 
+// The M^1/2-normalized mode shapes (columns of `shapes`), each at its most real phase: real
+// unit columns (eqs 38-41).
+Eigen::MatrixXd real_shapes(const Eigen::MatrixXd& m_half, const Eigen::MatrixXcd& shapes) {
+  Eigen::MatrixXd raw(shapes.rows(), shapes.cols());
+  for (Eigen::Index j = 0; j < shapes.cols(); ++j)
+    raw.col(j) = most_real(m_half.cast<Complex>() * shapes.col(j));
+  return raw;
+}
+
 // Nearest matrix with orthonormal columns to `raw` (C x k, k <= C): the polar factor U V^T (eq 43).
 Eigen::MatrixXd polar_factor(const Eigen::MatrixXd& raw) {
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(raw, Eigen::ComputeThinU | Eigen::ComputeThinV);
@@ -66,10 +75,7 @@ void mapping_eq48(const Eigen::MatrixXd& m_half, const Eigen::MatrixXcd& shapes,
                   const std::vector<bool>& valid, const Eigen::VectorXd& eta2,
                   const Eigen::VectorXd& gamma, Eigen::MatrixXd& p, Eigen::MatrixXd& k,
                   Eigen::MatrixXd& c) {
-  const int n = static_cast<int>(shapes.cols());
-  Eigen::MatrixXd raw(shapes.rows(), n);
-  for (int j = 0; j < n; ++j) raw.col(j) = most_real(m_half.cast<Complex>() * shapes.col(j));
-  p = orthonormal_shapes(raw, valid);  // eq 43: P^T P = I
+  p = orthonormal_shapes(real_shapes(m_half, shapes), valid);  // eq 43: P^T P = I
   k = m_half * p * eta2.asDiagonal() * p.transpose() * m_half;
   c = m_half * p * (2.0 * gamma).asDiagonal() * p.transpose() * m_half;
 }
@@ -91,9 +97,7 @@ void mapping_state_space(const Eigen::MatrixXd& m_half, const Eigen::MatrixXd& i
   const Eigen::MatrixXd kc = -(inertia.cast<Complex>() * y * x.inverse()).real();
   k = kc.leftCols(n);
   c = kc.rightCols(n);
-  Eigen::MatrixXd raw(shapes.rows(), n);
-  for (int j = 0; j < n; ++j) raw.col(j) = most_real(m_half.cast<Complex>() * shapes.col(j));
-  p = polar_factor(raw);
+  p = polar_factor(real_shapes(m_half, shapes));
 }
 
 }  // namespace

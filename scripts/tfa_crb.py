@@ -206,24 +206,21 @@ def track_model(coef, a, extra, strong, I):
 def track_jacobian(coef, a, extra, strong, I):
     """d response / d parameters [time, channel, parameter]: per mode the alpha coefficients,
     the omega coefficients, a_j (re, im per channel); then the extra terms."""
+    from tfa_crb_tracks import mode_jacobian
     e, _ = track_model(coef, a, extra, strong, I)
     e2 = e[:, strong] ** 2
     h = extra[4::2] + 1j * extra[5::2]
+    n = I.shape[1]
     blocks = []
     for j in range(2):
-        for unit in (1.0, 1j):
-            d = np.stack([(a[j, c] * unit * e[:, j, None] * I).real for c in range(2)], axis=1)
-            if j == strong:  # the quadratic terms move with the strongest mode's phase
-                d += np.stack([(2.0 * unit * I * (extra[2 + c] * np.abs(e2)[:, None]
-                                                  if unit == 1.0 else 0.0)).real +
-                               (2.0 * unit * h[c] * e2[:, None] * I).real
-                               for c in range(2)], axis=1)
-            blocks.append(d)
-        for c in range(2):
-            for unit in (1.0, 1j):
-                block = np.zeros((I.shape[0], 2, 1))
-                block[:, c, 0] = (unit * e[:, j]).real
-                blocks.append(block)
+        d = mode_jacobian(a[j], e[:, j], I)
+        if j == strong:  # the quadratic terms move with the strongest mode's phase
+            for k, unit in enumerate((1.0, 1j)):
+                d[:, :, k * n:(k + 1) * n] += np.stack(
+                    [(2.0 * unit * I * (extra[2 + c] * np.abs(e2)[:, None]
+                                        if unit == 1.0 else 0.0)).real +
+                     (2.0 * unit * h[c] * e2[:, None] * I).real for c in range(2)], axis=1)
+        blocks.append(d)
     for column in (np.ones(I.shape[0]), np.abs(e2)):
         for c in range(2):
             block = np.zeros((I.shape[0], 2, 1))
@@ -246,7 +243,7 @@ def crb_tracks(clean, truth, noise, family, onset_s, free_s, score=(2.6, 4.5)):
     onto the basis, then Gauss-Newton on the noise-free response. Returns (RMS SD % of the six
     coefficients, RMS error % of K, C from the model's truth, relative RMS misfit of the
     noise-free response)."""
-    from tfa_crb_tracks import family_basis  # needs scipy for the B-splines
+    from tfa_crb_tracks import family_basis, inverse_information  # needs scipy (B-splines)
     t = clean["t"]
     th = np.column_stack([clean["th1"], clean["th2"]])
     pre = (t >= onset_s - 0.2) & (t < onset_s)
@@ -309,10 +306,7 @@ def crb_tracks(clean, truth, noise, family, onset_s, free_s, score=(2.6, 4.5)):
     coef, a, extra = unpack(theta)
     misfit = np.sqrt(cost / np.sum(y ** 2))
     J = track_jacobian(coef, a, extra, strong, I)
-    Jw = np.einsum("ij,tip->tjp", L, J).reshape(-1, J.shape[2])
-    R = np.linalg.qr(Jw, mode="r")
-    R_inv = np.linalg.solve(R, np.eye(R.shape[0]))
-    cov = R_inv @ R_inv.T
+    cov = inverse_information(np.einsum("ij,tip->tjp", L, J).reshape(-1, J.shape[2]))
     # the coefficients and their gradients every 10 ms of the scored interval
     stride = max(1, int(round(0.01 / dt)))
     at = np.nonzero((tf >= score[0]) & (tf <= score[1]))[0][::stride]

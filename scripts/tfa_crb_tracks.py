@@ -111,6 +111,29 @@ def family_basis(family, tt):
     raise SystemExit(f"--families: '{family}': expected poly:DEGREE or spline:SPACING_S")
 
 
+def mode_jacobian(amplitude, e, I):
+    """d Re(amplitude_c exp(Phi(t))) per channel c [time, channel, parameter] of one mode whose
+    phase integral Phi has d Phi / d coefficient = I (alpha) or i I (omega): the alpha
+    coefficients, the omega coefficients, then the amplitude (re, im per channel)."""
+    channels = len(amplitude)
+    blocks = [np.stack([(amplitude[c] * unit * e[:, None] * I).real for c in range(channels)],
+                       axis=1) for unit in (1.0, 1j)]
+    for c in range(channels):
+        for unit in (1.0, 1j):
+            block = np.zeros((I.shape[0], channels, 1))
+            block[:, c, 0] = (unit * e).real
+            blocks.append(block)
+    return np.concatenate(blocks, axis=2)
+
+
+def inverse_information(J):
+    """F^-1 = (J^T J)^-1 for the (whitened) Jacobian rows J, through the QR of J (F is
+    ill-conditioned for fine knots)."""
+    R = np.linalg.qr(J, mode="r")
+    R_inv = np.linalg.solve(R, np.eye(R.shape[0]))
+    return R_inv @ R_inv.T
+
+
 def bounds(family, shape, shape_int, sd):
     """Per mode: (RMS rel. SD of alpha %, RMS rel. SD of f %, RMS rel. representation error of
     alpha %) over the scored interval."""
@@ -121,24 +144,14 @@ def bounds(family, shape, shape_int, sd):
     n = B.shape[1]
     I = np.cumsum(B, axis=0) * dt  # d Phi / d coefficient
     I -= I[0]
-    columns = []
+    blocks = []
     for f, alpha0, a in MODES:
         phase0 = alpha0 * shape_int(tau[0]) + 2j * np.pi * f * tau[0]
         amplitude = a * np.exp(phase0)  # at the first fitted sample
         e = np.exp(alpha0 * (shape_int(tau) - shape_int(tau[0])) + 2j * np.pi * f * (tau - tau[0]))
-        for unit in (1.0, 1j):  # alpha coefficients, then omega coefficients
-            columns.append(np.vstack([np.real(amplitude[c] * unit * e[:, None] * I)
-                                      for c in range(2)]))
-        for c in range(2):
-            for unit in (1.0, 1j):
-                block = np.zeros((2, len(t)))
-                block[c] = np.real(unit * e)
-                columns.append(block.reshape(-1, 1))
-    J = np.hstack(columns) / sd
-    # F^-1 through the QR of J (F is ill-conditioned for fine knots)
-    R = np.linalg.qr(J, mode="r")
-    R_inv = np.linalg.solve(R, np.eye(R.shape[0]))
-    cov = R_inv @ R_inv.T
+        blocks.append(mode_jacobian(amplitude, e, I))
+    J = np.concatenate(blocks, axis=2)
+    cov = inverse_information(J.reshape(-1, J.shape[2]) / sd)
     scored = (t >= SCORE[0]) & (t <= SCORE[1])
     out = []
     offset = 0

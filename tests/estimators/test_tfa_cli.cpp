@@ -14,6 +14,8 @@
 #include <sstream>
 #include <string>
 
+#include "tests/support/support.hpp"
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -37,11 +39,10 @@ int run(const std::string& args, std::string& err) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-// The JSON document in `path` (a failed parse fails the test with the file's name).
+// The JSON document in `path` (a missing file fails the test with the file's name).
 nlohmann::json read_json(const fs::path& path) {
-  std::ifstream in(path);
-  BOOST_REQUIRE_MESSAGE(in, "cannot open " << path);
-  return nlohmann::json::parse(in);
+  BOOST_REQUIRE_MESSAGE(fs::exists(path), "cannot open " << path);
+  return nlohmann::json::parse(stiffid::test::read_text(path));
 }
 
 fs::path scratch(const std::string& name) {
