@@ -35,7 +35,7 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     do not cross;
     posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including the mode-to-data power and
     separation checks (damped_modes.cpp);
-  - eqs 45-46 and the eq-48 mapping to K(t), C(t), P(t), a lost mode's column of P completed from
+  - eqs 45-46 and the eq-48 mapping to K(t), C(t), P(t) (eq 43 weighted by the modes' ANR power), a lost mode's column of P completed from
     the valid ones (modal_parameters.cpp), the
     per-time modal quantities and eq 49's normalized force (tfa.cpp, normalized_force.cpp);
   - JSON with the keys of `stiffid tfa` (apps/cmd_tfa.cpp), decay_ratio (rho_j per output mode,
@@ -789,14 +789,20 @@ def modal_parameters(tracks, mass, mapping="eq48"):
     n = shapes.shape[2]
     root = spd_sqrt(mass)
     raw = most_real(root @ shapes)
-    uu, _, vv = np.linalg.svd(raw)
-    p = uu @ vv  # nearest orthogonal matrix (eq 43)
-    # where some modes are valid and others not, the valid ones fix P; the others are completed
-    # in their orthogonal complement (modal_parameters.cpp, orthonormal_shapes)
+    # eq 43: the nearest orthogonal matrix with each valid mode weighted by its ANR power
+    # (relative to the strongest valid mode), the invalid ones completed in the orthogonal
+    # complement of the valid ones (modal_parameters.cpp, orthonormal_shapes)
     mode_valid = np.stack([t["valid"] for t in tracks], axis=1)  # (T, n)
+    anr = np.stack([t["anr_db"] for t in tracks], axis=1)
+    strongest = np.max(np.where(mode_valid, anr, -np.inf), axis=1, keepdims=True)
+    with np.errstate(invalid="ignore"):
+        weight = np.where(mode_valid, 10.0 ** ((anr - strongest) / 10.0), 0.0)
+    weight[~mode_valid.any(axis=1)] = 1.0  # none valid: the unweighted polar factor
+    uu, _, vv = np.linalg.svd(raw * weight[:, None, :])
+    p = uu @ vv
     for i in np.nonzero(mode_valid.any(axis=1) & ~mode_valid.all(axis=1))[0]:
         kept, lost = np.nonzero(mode_valid[i])[0], np.nonzero(~mode_valid[i])[0]
-        ug, _, vg = np.linalg.svd(raw[i][:, kept], full_matrices=False)
+        ug, _, vg = np.linalg.svd(raw[i][:, kept] * weight[i, kept], full_matrices=False)
         u = ug @ vg
         rest = raw[i][:, lost] - u @ (u.T @ raw[i][:, lost])
         if np.linalg.norm(rest, axis=0).min() > 1e-9:

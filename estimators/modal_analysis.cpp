@@ -4,6 +4,7 @@
 #include <cmath>
 #include <string>
 
+#include "estimators/modal_parameters.hpp"
 #include "models/arm.hpp"
 
 namespace stiffid::estimators {
@@ -95,10 +96,16 @@ ModalAnalysisResult modal_analysis(const RidgeResult& ridges,
       p.col(j) = (root * phi.col(j)).normalized();
     }
     r.separated(m) = p.allFinite();
-    if (r.separated(m)) {  // nearest orthonormal matrix: the polar factor U V^T
-      const Eigen::JacobiSVD<Eigen::MatrixXd> svd(p, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    if (r.separated(m)) {  // nearest orthonormal matrix (eq 43), weighted by the modes' ANR
+      const Eigen::JacobiSVD<Eigen::MatrixXd> svd(p);
       r.separated(m) = svd.singularValues().minCoeff() >= 1e-6 * svd.singularValues().maxCoeff();
-      p = svd.matrixU() * svd.matrixV().transpose();
+      Eigen::VectorXd weight = Eigen::VectorXd::Ones(n);
+      if (ridges.anr_db.rows() == frames && ridges.anr_db.row(m).allFinite()) {
+        const double strongest_db = ridges.anr_db.row(m).maxCoeff();
+        for (int j = 0; j < n; ++j)
+          weight(j) = std::pow(10.0, (ridges.anr_db(m, j) - strongest_db) / 10.0);
+      }
+      p = orthonormal_shapes(p, weight);
     }
     const Eigen::VectorXd eta2 = r.eta_squared_per_s2.row(m).transpose();
     const Eigen::VectorXd two_gamma = 2.0 * r.gamma_per_s.row(m).transpose();

@@ -60,8 +60,11 @@ struct ModalAnalysisResult {
 ///    - alpha' (docs/tfa.md).
 ///  - Mode shapes phi_jk = A_jk cos(phase_jk - phase_j,ref) (eqs 37, 41: amplitude ratios, with
 ///    the sign and the projection of the non-classical phase difference), smoothed; normalised
-///    eigenvectors p_j = M^1/2 phi_j / |M^1/2 phi_j| (eq 24) made orthonormal by the nearest
-///    orthogonal matrix (polar factor), as P^T P = I of eq 43 requires.
+///    eigenvectors p_j = M^1/2 phi_j / |M^1/2 phi_j| (eq 24) made orthonormal, as P^T P = I of
+///    eq 43 requires, by the nearest orthogonal matrix with each mode weighted by its
+///    amplitude-to-noise power ratio at the frame (ridges.anr_db; alike without it): a weak
+///    mode's noisy shape moves P less than a strong one's (orthonormal_shapes,
+///    modal_parameters.hpp; docs/tfa_modal.md, "Eq 43 weighted by the modes' ANR").
 ///  - K_theta = M^1/2 P diag(eta^2) P^T M^1/2, C_theta = M^1/2 P diag(2 Gamma) P^T M^1/2 (eq 48,
 ///    whose left-hand sides are the joint, not the normalised, matrices).
 /// Throws InputError when the channel count differs from the mode count or the inertia list does

@@ -3,8 +3,10 @@
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 #include <complex>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -39,21 +41,27 @@ Eigen::MatrixXd polar_factor(const Eigen::MatrixXd& raw) {
   return svd.matrixU() * svd.matrixV().transpose();
 }
 
-// Eq 43's orthonormal P from the real shapes (columns of `raw`). When some modes are valid and
-// others not (a mode sunk into the noise: its shape is the splines' extrapolation), the valid
-// modes' columns alone fix their part of P (their polar factor) and the others are completed in
-// its orthogonal complement: their shapes projected onto it (polar factor there), or, when the
-// projection vanishes, the complement's basis. With all or none valid, the polar factor of all.
-Eigen::MatrixXd orthonormal_shapes(const Eigen::MatrixXd& raw, const std::vector<bool>& valid) {
+}  // namespace
+
+Eigen::MatrixXd orthonormal_shapes(const Eigen::MatrixXd& raw, const Eigen::VectorXd& weight) {
   const int n = static_cast<int>(raw.cols());
+  if (weight.size() != n)
+    throw InputError("orthonormal_shapes: " + std::to_string(weight.size()) + " weights for " +
+                     std::to_string(n) + " shapes");
   std::vector<int> kept, lost;
-  for (int j = 0; j < n; ++j) (valid[j] ? kept : lost).push_back(j);
-  if (kept.empty() || lost.empty()) return polar_factor(raw);
+  for (int j = 0; j < n; ++j) (std::isfinite(weight(j)) && weight(j) > 0.0 ? kept : lost).push_back(j);
+  if (kept.empty()) return polar_factor(raw);
+  double largest = 0.0;
+  for (const int j : kept) largest = std::max(largest, weight(j));
   Eigen::MatrixXd good(raw.rows(), kept.size()), rest(raw.rows(), lost.size());
-  for (std::size_t i = 0; i < kept.size(); ++i) good.col(i) = raw.col(kept[i]);
+  for (std::size_t i = 0; i < kept.size(); ++i)
+    good.col(i) = (weight(kept[i]) / largest) * raw.col(kept[i]);
+  const Eigen::MatrixXd u = polar_factor(good);  // weighted orthogonal Procrustes
+  Eigen::MatrixXd p(raw.rows(), n);
+  for (std::size_t i = 0; i < kept.size(); ++i) p.col(kept[i]) = u.col(i);
+  if (lost.empty()) return p;
   for (std::size_t i = 0; i < lost.size(); ++i) rest.col(i) = raw.col(lost[i]);
-  const Eigen::MatrixXd u = polar_factor(good);
-  rest -= u * (u.transpose() * rest);  // into the complement of the valid modes' span
+  rest -= u * (u.transpose() * rest);  // into the complement of the weighted modes' span
   Eigen::MatrixXd completion;
   if (rest.colwise().norm().minCoeff() > 1e-9) {
     completion = polar_factor(rest);
@@ -61,8 +69,6 @@ Eigen::MatrixXd orthonormal_shapes(const Eigen::MatrixXd& raw, const std::vector
     const Eigen::JacobiSVD<Eigen::MatrixXd> full(u, Eigen::ComputeFullU);
     completion = full.matrixU().rightCols(lost.size());
   }
-  Eigen::MatrixXd p(raw.rows(), n);
-  for (std::size_t i = 0; i < kept.size(); ++i) p.col(kept[i]) = u.col(i);
   for (std::size_t i = 0; i < lost.size(); ++i) {
     // the lost shape's sign kept (eq 48 does not depend on it; the JSON's eigenvectors do)
     const double sign = completion.col(i).dot(raw.col(lost[i])) < 0.0 ? -1.0 : 1.0;
@@ -71,11 +77,13 @@ Eigen::MatrixXd orthonormal_shapes(const Eigen::MatrixXd& raw, const std::vector
   return p;
 }
 
+namespace {
+
 void mapping_eq48(const Eigen::MatrixXd& m_half, const Eigen::MatrixXcd& shapes,
-                  const std::vector<bool>& valid, const Eigen::VectorXd& eta2,
+                  const Eigen::VectorXd& weight, const Eigen::VectorXd& eta2,
                   const Eigen::VectorXd& gamma, Eigen::MatrixXd& p, Eigen::MatrixXd& k,
                   Eigen::MatrixXd& c) {
-  p = orthonormal_shapes(real_shapes(m_half, shapes), valid);  // eq 43: P^T P = I
+  p = orthonormal_shapes(real_shapes(m_half, shapes), weight);  // eq 43: P^T P = I
   k = m_half * p * eta2.asDiagonal() * p.transpose() * m_half;
   c = m_half * p * (2.0 * gamma).asDiagonal() * p.transpose() * m_half;
 }
@@ -131,7 +139,12 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
     if (i == 0 || inertia_kg_m2.size() > 1) m_half = models::spd_sqrt(inertia);
     Eigen::MatrixXcd shapes(c, n);
     Eigen::VectorXd gamma(n), eta2(n);
-    std::vector<bool> mode_valid(n);
+    // Eq 43's weights: a valid mode's amplitude-to-noise power ratio (its shape's precision),
+    // relative to the strongest; 0 for a mode flagged invalid.
+    Eigen::VectorXd weight = Eigen::VectorXd::Zero(n);
+    double strongest_db = -std::numeric_limits<double>::infinity();
+    for (int j = 0; j < n; ++j)
+      if (modes.modes[j].valid(i)) strongest_db = std::max(strongest_db, modes.modes[j].anr_db(i));
     bool valid = true;
     for (int j = 0; j < n; ++j) {
       const ModeTrack& mt = modes.modes[j];
@@ -140,14 +153,14 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
       gamma(j) = -a - w_dot / (2.0 * w);                    // eq 45
       eta2(j) = w * w + a * a + a * w_dot / w - a_dot;     // eq 46 (alpha dot, see header)
       shapes.col(j) = mt.shape.row(i).transpose();
-      mode_valid[j] = mt.valid(i);
+      if (mt.valid(i)) weight(j) = std::pow(10.0, (mt.anr_db(i) - strongest_db) / 10.0);
       valid = valid && mt.valid(i) && eta2(j) > gamma(j) * gamma(j);
     }
     r.gamma_per_s.col(i) = gamma;
     r.eta_squared_rad2_per_s2.col(i) = eta2;
     Eigen::MatrixXd p, k, d;
     if (options.mapping == ModalMapping::paper_eq48)
-      mapping_eq48(m_half, shapes, mode_valid, eta2, gamma, p, k, d);
+      mapping_eq48(m_half, shapes, weight, eta2, gamma, p, k, d);
     else
       mapping_state_space(m_half, inertia, shapes, eta2, gamma, p, k, d);
     if (options.symmetrize) {

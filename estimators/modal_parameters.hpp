@@ -24,8 +24,11 @@ enum class ModalMapping {
   /// rotated to its most real phase, eqs 38-41, then the nearest orthogonal matrix, eq 43), K =
   /// M^1/2 P diag(eta^2) P^T M^1/2 and C = M^1/2 P diag(2 Gamma) P^T M^1/2. Exact for classical
   /// damping; the shapes' non-classical phases are dropped, which keeps their noise out of C.
-  /// At a time where some modes are flagged invalid (sunk into the noise), P's columns for the
-  /// valid modes come from their shapes alone and the others complete them in the orthogonal
+  /// P is the weighted nearest orthogonal matrix (orthonormal_shapes below), each mode weighted
+  /// by its amplitude-to-noise power ratio: a weak mode's noisy shape moves P less than a strong
+  /// mode's (docs/tfa_modal.md, "Eq 43 weighted by the modes' ANR"). At a time where some modes
+  /// are flagged invalid (sunk into the noise), their weight is zero: P's columns for the valid
+  /// modes come from their shapes alone and the others complete them in the orthogonal
   /// complement, not from their extrapolated shapes (docs/tfa_modal.md, "A lost mode's shape").
   paper_eq48,
   /// Second-order inverse eigenproblem: with the effective poles mu_j = -Gamma_j +
@@ -63,6 +66,15 @@ struct ModalParametersResult {
   Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] every mode valid at t, eta^2 > Gamma^2
                                                 ///< and K(t) positive definite
 };
+
+/// Eq 43's P (C x n, orthonormal columns, n <= C) from the real M^1/2-normalized mode shapes
+/// `raw` (C x n, unit columns) and a weight per shape (its precision, e.g. the mode's amplitude-
+/// to-noise power ratio; only ratios matter). The modes of positive weight get the P that
+/// minimizes sum_j weight_j |P e_j - raw_j|^2 (weighted orthogonal Procrustes: the polar factor
+/// of raw diag(weight)); the columns of zero (or non-finite) weight complete them in the
+/// orthogonal complement of their span (the lost shapes projected onto it, their sign kept). All
+/// weights zero: the unweighted polar factor. Throws InputError when the sizes differ.
+Eigen::MatrixXd orthonormal_shapes(const Eigen::MatrixXd& raw, const Eigen::VectorXd& weight);
 
 /// K(t), C(t) from the tracks. `inertia_kg_m2` holds M(theta(t)) ((C x C) SPD) for every time of
 /// `modes.t_s`, or one matrix for all. Throws InputError when the number of modes differs from the

@@ -173,6 +173,57 @@ BOOST_AUTO_TEST_CASE(a_lost_modes_shape_is_completed_from_the_valid_ones) {
   BOOST_CHECK_GT(ek_polar, 0.1);
 }
 
+BOOST_AUTO_TEST_CASE(a_weak_modes_noisy_shape_moves_p_by_its_weight) {
+  // Eq 43 weighted by the modes' amplitude-to-noise power ratios. M = I, true P = I; the strong
+  // mode's shape is exact (e1), the weak one's, 10 dB below it, is off by delta = 0.2 rad. The P
+  // maximizing w1 cos(phi) + w2 cos(phi - delta) (w = 10^(ANR/10)) is the rotation by phi with
+  // tan phi = w2 sin delta / (w1 + w2 cos delta): K = R(phi) diag(eta^2) R(phi)^T in closed
+  // form. Equal ANRs give phi = delta / 2 (the unweighted polar factor).
+  const double delta = 0.2, omega1 = 15.0, omega2 = 22.0, alpha1 = -1.0, alpha2 = -2.0;
+  auto track = [](double omega, double alpha, Eigen::Vector2d shape, double anr_db) {
+    stiffid::estimators::ModeTrack mt;
+    mt.omega_rad_per_s = Eigen::VectorXd::Constant(1, omega);
+    mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
+    mt.omega_dot_rad_per_s2 = Eigen::VectorXd::Zero(1);
+    mt.alpha_per_s = Eigen::VectorXd::Constant(1, alpha);
+    mt.alpha_dot_per_s2 = Eigen::VectorXd::Zero(1);
+    mt.shape = (0.01 * shape).cast<std::complex<double>>().transpose();
+    mt.anr_db = Eigen::VectorXd::Constant(1, anr_db);
+    mt.valid = Eigen::Array<bool, Eigen::Dynamic, 1>::Constant(1, true);
+    return mt;
+  };
+  for (const double weak_db : {30.0, 40.0}) {
+    stiffid::estimators::DampedModesResult modes;
+    modes.t_s = Eigen::VectorXd::Constant(1, 3.0);
+    modes.modes = {track(omega1, alpha1, {1.0, 0.0}, 40.0),
+                   track(omega2, alpha2, {-std::sin(delta), std::cos(delta)}, weak_db)};
+    const auto r = modal_parameters(modes, {Eigen::Matrix2d::Identity()}, {});
+    const double w2 = std::pow(10.0, (weak_db - 40.0) / 10.0);
+    const double phi = std::atan2(w2 * std::sin(delta), 1.0 + w2 * std::cos(delta));
+    Eigen::Matrix2d rotation;
+    rotation << std::cos(phi), -std::sin(phi), std::sin(phi), std::cos(phi);
+    // eq 46 with constant tracks: eta^2 = omega^2 + alpha^2; eq 45: Gamma = -alpha
+    const Eigen::Vector2d eta2(omega1 * omega1 + alpha1 * alpha1, omega2 * omega2 + alpha2 * alpha2);
+    const Eigen::Matrix2d k = rotation * eta2.asDiagonal() * rotation.transpose();
+    const Eigen::Matrix2d c =
+        rotation * Eigen::Vector2d(-2.0 * alpha1, -2.0 * alpha2).asDiagonal() * rotation.transpose();
+    BOOST_TEST_MESSAGE("weak mode at " << weak_db << " dB: phi " << phi << " rad");
+    BOOST_CHECK_SMALL((r.stiffness[0] - k).norm() / k.norm(), 1e-12);
+    BOOST_CHECK_SMALL((r.damping[0] - c).norm() / c.norm(), 1e-12);
+    if (weak_db == 40.0) BOOST_CHECK_CLOSE(phi, delta / 2.0, 1e-9);
+  }
+  // The weights' scale does not matter; a zero weight completes the column; sizes are checked.
+  Eigen::Matrix2d raw;
+  raw << 1.0, -std::sin(delta), 0.0, std::cos(delta);
+  const Eigen::MatrixXd p = stiffid::estimators::orthonormal_shapes(raw, Eigen::Vector2d(1e11, 1e10));
+  BOOST_CHECK_SMALL((p - stiffid::estimators::orthonormal_shapes(raw, Eigen::Vector2d(1.0, 0.1)))
+                        .norm(), 1e-12);
+  BOOST_CHECK_SMALL((stiffid::estimators::orthonormal_shapes(raw, Eigen::Vector2d(1.0, 0.0)) -
+                     Eigen::Matrix2d::Identity()).norm(), 1e-12);
+  BOOST_CHECK_THROW(stiffid::estimators::orthonormal_shapes(raw, Eigen::Vector3d::Ones()),
+                    InputError);
+}
+
 BOOST_AUTO_TEST_CASE(rejects_mismatched_inertia) {
   const Case cs = paper_case(0.0);
   const Eigen::MatrixXd q = free_response(cs.m, cs.k, cs.c, {0.3, -0.5});

@@ -260,6 +260,11 @@ BOOST_AUTO_TEST_CASE(spectrogram_with_chirped_frame_fits_meets_issue_6s_k11_targ
         BOOST_TEST_MESSAGE("spectrogram, chirped, " << name << ", " << direction
                                                    << " deg, " << snr << " dB:" << report(c));
         BOOST_CHECK_LE(k11, 10.0);
+        // Eq 43 weighted by the modes' ANR (modal_analysis.hpp): k12 and k22 within issue 7's
+        // targets over 2.6-4.5 s too. With every mode weighted alike the weak mode's shape noise
+        // put k12 at 45 degrees (sigmoid K) 49 % off at 20 dB and 53 % noise-free.
+        BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 10.0);
+        BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
       }
     }
   }
