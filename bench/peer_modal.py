@@ -35,8 +35,8 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     do not cross;
     posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including the mode-to-data power and
     separation checks (damped_modes.cpp);
-  - eqs 45-46 and the eq-48 mapping to K(t), C(t), P(t) (eq 43 weighted by the modes' ANR power), a lost mode's column of P completed from
-    the valid ones (modal_parameters.cpp), the
+  - eqs 45-46 and the eq-48 mapping to K(t), C(t), P(t) (eq 43 weighted by the modes' ANR
+    power), a lost mode's column of P completed from the valid ones (modal_parameters.cpp), the
     per-time modal quantities and eq 49's normalized force (tfa.cpp, normalized_force.cpp);
   - JSON with the keys of `stiffid tfa` (apps/cmd_tfa.cpp), decay_ratio (rho_j per output mode,
     1 for the reference mode and without a tie) and options.decay_tie (the sd used, 0: none)

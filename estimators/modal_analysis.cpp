@@ -1,7 +1,9 @@
 #include "estimators/modal_analysis.hpp"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "estimators/modal_parameters.hpp"
@@ -99,9 +101,13 @@ ModalAnalysisResult modal_analysis(const RidgeResult& ridges,
     if (r.separated(m)) {  // nearest orthonormal matrix (eq 43), weighted by the modes' ANR
       const Eigen::JacobiSVD<Eigen::MatrixXd> svd(p);
       r.separated(m) = svd.singularValues().minCoeff() >= 1e-6 * svd.singularValues().maxCoeff();
+      // (a mode of non-finite ANR gets weight 0 or NaN: its column completes the others')
       Eigen::VectorXd weight = Eigen::VectorXd::Ones(n);
-      if (ridges.anr_db.rows() == frames && ridges.anr_db.row(m).allFinite()) {
-        const double strongest_db = ridges.anr_db.row(m).maxCoeff();
+      if (ridges.anr_db.rows() == frames) {
+        double strongest_db = -std::numeric_limits<double>::infinity();
+        for (int j = 0; j < n; ++j)
+          if (std::isfinite(ridges.anr_db(m, j)))
+            strongest_db = std::max(strongest_db, ridges.anr_db(m, j));
         for (int j = 0; j < n; ++j)
           weight(j) = std::pow(10.0, (ridges.anr_db(m, j) - strongest_db) / 10.0);
       }

@@ -49,7 +49,8 @@ Eigen::MatrixXd orthonormal_shapes(const Eigen::MatrixXd& raw, const Eigen::Vect
     throw InputError("orthonormal_shapes: " + std::to_string(weight.size()) + " weights for " +
                      std::to_string(n) + " shapes");
   std::vector<int> kept, lost;
-  for (int j = 0; j < n; ++j) (std::isfinite(weight(j)) && weight(j) > 0.0 ? kept : lost).push_back(j);
+  for (int j = 0; j < n; ++j)
+    (std::isfinite(weight(j)) && weight(j) > 0.0 ? kept : lost).push_back(j);
   if (kept.empty()) return polar_factor(raw);
   double largest = 0.0;
   for (const int j : kept) largest = std::max(largest, weight(j));

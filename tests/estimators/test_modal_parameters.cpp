@@ -203,10 +203,11 @@ BOOST_AUTO_TEST_CASE(a_weak_modes_noisy_shape_moves_p_by_its_weight) {
     Eigen::Matrix2d rotation;
     rotation << std::cos(phi), -std::sin(phi), std::sin(phi), std::cos(phi);
     // eq 46 with constant tracks: eta^2 = omega^2 + alpha^2; eq 45: Gamma = -alpha
-    const Eigen::Vector2d eta2(omega1 * omega1 + alpha1 * alpha1, omega2 * omega2 + alpha2 * alpha2);
+    const Eigen::Vector2d eta2(omega1 * omega1 + alpha1 * alpha1,
+                               omega2 * omega2 + alpha2 * alpha2);
+    const Eigen::Vector2d two_gamma(-2.0 * alpha1, -2.0 * alpha2);
     const Eigen::Matrix2d k = rotation * eta2.asDiagonal() * rotation.transpose();
-    const Eigen::Matrix2d c =
-        rotation * Eigen::Vector2d(-2.0 * alpha1, -2.0 * alpha2).asDiagonal() * rotation.transpose();
+    const Eigen::Matrix2d c = rotation * two_gamma.asDiagonal() * rotation.transpose();
     BOOST_TEST_MESSAGE("weak mode at " << weak_db << " dB: phi " << phi << " rad");
     BOOST_CHECK_SMALL((r.stiffness[0] - k).norm() / k.norm(), 1e-12);
     BOOST_CHECK_SMALL((r.damping[0] - c).norm() / c.norm(), 1e-12);
@@ -215,13 +216,13 @@ BOOST_AUTO_TEST_CASE(a_weak_modes_noisy_shape_moves_p_by_its_weight) {
   // The weights' scale does not matter; a zero weight completes the column; sizes are checked.
   Eigen::Matrix2d raw;
   raw << 1.0, -std::sin(delta), 0.0, std::cos(delta);
-  const Eigen::MatrixXd p = stiffid::estimators::orthonormal_shapes(raw, Eigen::Vector2d(1e11, 1e10));
-  BOOST_CHECK_SMALL((p - stiffid::estimators::orthonormal_shapes(raw, Eigen::Vector2d(1.0, 0.1)))
-                        .norm(), 1e-12);
-  BOOST_CHECK_SMALL((stiffid::estimators::orthonormal_shapes(raw, Eigen::Vector2d(1.0, 0.0)) -
-                     Eigen::Matrix2d::Identity()).norm(), 1e-12);
-  BOOST_CHECK_THROW(stiffid::estimators::orthonormal_shapes(raw, Eigen::Vector3d::Ones()),
-                    InputError);
+  using stiffid::estimators::orthonormal_shapes;
+  const Eigen::MatrixXd p = orthonormal_shapes(raw, Eigen::Vector2d(1e11, 1e10));
+  BOOST_CHECK_SMALL((p - orthonormal_shapes(raw, Eigen::Vector2d(1.0, 0.1))).norm(), 1e-12);
+  BOOST_CHECK_SMALL(
+      (orthonormal_shapes(raw, Eigen::Vector2d(1.0, 0.0)) - Eigen::Matrix2d::Identity()).norm(),
+      1e-12);
+  BOOST_CHECK_THROW(orthonormal_shapes(raw, Eigen::Vector3d::Ones()), InputError);
 }
 
 BOOST_AUTO_TEST_CASE(rejects_mismatched_inertia) {
