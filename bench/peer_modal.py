@@ -789,14 +789,12 @@ def modal_parameters(tracks, mass, mapping="eq48"):
     n = shapes.shape[2]
     root = spd_sqrt(mass)
     raw = most_real(root @ shapes)
-    # eq 43: the nearest orthogonal matrix with each valid mode weighted by its ANR power
-    # (relative to the strongest valid mode), the invalid ones completed in the orthogonal
-    # complement of the valid ones (modal_parameters.cpp, orthonormal_shapes)
+    # eq 43: the nearest orthogonal matrix with each valid mode weighted by its ANR power, the
+    # invalid ones completed in the orthogonal complement of the valid ones
+    # (modal_parameters.cpp, orthonormal_shapes)
     mode_valid = np.stack([t["valid"] for t in tracks], axis=1)  # (T, n)
     anr = np.stack([t["anr_db"] for t in tracks], axis=1)
-    strongest = np.max(np.where(mode_valid, anr, -np.inf), axis=1, keepdims=True)
-    with np.errstate(invalid="ignore"):
-        weight = np.where(mode_valid, 10.0 ** ((anr - strongest) / 10.0), 0.0)
+    weight = np.where(mode_valid, 10.0 ** (anr / 10.0), 0.0)
     weight[~mode_valid.any(axis=1)] = 1.0  # none valid: the unweighted polar factor
     uu, _, vv = np.linalg.svd(raw * weight[:, None, :])
     p = uu @ vv

@@ -1,9 +1,7 @@
 #include "estimators/modal_analysis.hpp"
 
 #include <Eigen/Dense>
-#include <algorithm>
 #include <cmath>
-#include <limits>
 #include <string>
 
 #include "estimators/modal_parameters.hpp"
@@ -101,16 +99,10 @@ ModalAnalysisResult modal_analysis(const RidgeResult& ridges,
     if (r.separated(m)) {  // nearest orthonormal matrix (eq 43), weighted by the modes' ANR
       const Eigen::JacobiSVD<Eigen::MatrixXd> svd(p);
       r.separated(m) = svd.singularValues().minCoeff() >= 1e-6 * svd.singularValues().maxCoeff();
-      // (a mode of non-finite ANR gets weight 0 or NaN: its column completes the others')
+      // (a mode of non-finite ANR gets a weight of 0 or NaN: its column completes the others')
       Eigen::VectorXd weight = Eigen::VectorXd::Ones(n);
-      if (ridges.anr_db.rows() == frames) {
-        double strongest_db = -std::numeric_limits<double>::infinity();
-        for (int j = 0; j < n; ++j)
-          if (std::isfinite(ridges.anr_db(m, j)))
-            strongest_db = std::max(strongest_db, ridges.anr_db(m, j));
-        for (int j = 0; j < n; ++j)
-          weight(j) = std::pow(10.0, (ridges.anr_db(m, j) - strongest_db) / 10.0);
-      }
+      if (ridges.anr_db.rows() == frames)
+        for (int j = 0; j < n; ++j) weight(j) = std::pow(10.0, ridges.anr_db(m, j) / 10.0);
       p = orthonormal_shapes(p, weight);
     }
     const Eigen::VectorXd eta2 = r.eta_squared_per_s2.row(m).transpose();

@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
-#include <limits>
 #include <string>
 #include <vector>
 
@@ -140,12 +139,9 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
     if (i == 0 || inertia_kg_m2.size() > 1) m_half = models::spd_sqrt(inertia);
     Eigen::MatrixXcd shapes(c, n);
     Eigen::VectorXd gamma(n), eta2(n);
-    // Eq 43's weights: a valid mode's amplitude-to-noise power ratio (its shape's precision),
-    // relative to the strongest; 0 for a mode flagged invalid.
+    // Eq 43's weights: a valid mode's amplitude-to-noise power ratio (its shape's precision);
+    // 0 for a mode flagged invalid.
     Eigen::VectorXd weight = Eigen::VectorXd::Zero(n);
-    double strongest_db = -std::numeric_limits<double>::infinity();
-    for (int j = 0; j < n; ++j)
-      if (modes.modes[j].valid(i)) strongest_db = std::max(strongest_db, modes.modes[j].anr_db(i));
     bool valid = true;
     for (int j = 0; j < n; ++j) {
       const ModeTrack& mt = modes.modes[j];
@@ -154,7 +150,7 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
       gamma(j) = -a - w_dot / (2.0 * w);                    // eq 45
       eta2(j) = w * w + a * a + a * w_dot / w - a_dot;     // eq 46 (alpha dot, see header)
       shapes.col(j) = mt.shape.row(i).transpose();
-      if (mt.valid(i)) weight(j) = std::pow(10.0, (mt.anr_db(i) - strongest_db) / 10.0);
+      if (mt.valid(i)) weight(j) = std::pow(10.0, mt.anr_db(i) / 10.0);
       valid = valid && mt.valid(i) && eta2(j) > gamma(j) * gamma(j);
     }
     r.gamma_per_s.col(i) = gamma;
