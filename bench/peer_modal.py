@@ -17,7 +17,8 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     and the strongest mode's square (exp(2 Re Phi_J), exp(2 Phi_J)) offered after the smoothest
     fit and kept by the BIC rule (the arm's quadratic distortion);
   - variable projection with Kaufman's Jacobian, minimized by Levenberg-Marquardt, along the
-    roughness continuation 0.003 .. 3 with the BIC rule;
+    roughness continuation 0.003 .. 3 with the BIC rule, from its third candidate on each
+    candidate also fitted from the start tracks and the lower cost kept;
   - the decay tie (more than one mode; opt-in, --decay-tie as stiffid's, default 0 = none): a
     Gaussian prior on (c_alpha_j - rho_j c_alpha_0) /
     (sd scale_j) for every decay-spline coefficient of the modes j > 0, scale_j = mode j's mean
@@ -392,6 +393,12 @@ def solve(problem, theta, max_iterations):
     return fit.x, usable, fit.status > 0, fit.nfev
 
 
+def cost(problem, theta):
+    """Half the sum of squared residuals (data, penalty, prior and tie rows) at theta."""
+    r = problem.residual(theta)
+    return 0.5 * float(r @ r)
+
+
 def fit_size(problem, theta, with_dof):
     if not problem.evaluate(theta):
         return None
@@ -512,6 +519,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     m = track.size
     ig = track.integrals(p["tau_s"])
     theta = start_tracks(p, track, start, o, modes)
+    cold = theta.copy()  # the start tracks, the continuation's second start from its third step
 
     terms = [(j, np.eye(c)[k].astype(complex), 0) for j in range(modes) for k in range(c)]
     constant = np.ones((n, 1))
@@ -530,13 +538,19 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     # The linear design of the candidates: constant shapes (stage 1) or slowly varying ones.
     design = dict(functions=constant, terms=terms, pairs=[], weight=0.0)
 
-    def try_candidate(roughness, tie, with_dof, start, accept):
-        """Fits one candidate from start; taken (fit) when accept(rss, dof, price) says so;
-        False when it is not usable or not taken."""
+    def try_candidate(roughness, tie, with_dof, start, accept, restart=False):
+        """Fits one candidate from start (with restart, also from the start tracks, the lower
+        cost kept); taken (fit) when accept(rss, dof, price) says so; False when it is not
+        usable or not taken."""
         problem = VpProblem(p, modes, ig, design["functions"], design["terms"], design["pairs"],
                             design["weight"], prior_rows(track, modes, roughness), tie, so[0])
         candidate, usable, conv, nfev = solve(problem, start, o["max_iterations"])
         res["iterations"] += nfev
+        if restart and start.size == cold.size and not np.array_equal(start, cold):
+            other, usable2, conv2, nfev2 = solve(problem, cold, o["max_iterations"])
+            res["iterations"] += nfev2
+            if usable2 and (not usable or cost(problem, other) < cost(problem, candidate)):
+                candidate, usable, conv = other, usable2, conv2
         size = fit_size(problem, candidate, with_dof) if usable else None
         if size is None:
             return False
@@ -587,7 +601,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     tie, chosen, smoothest = DecayTie(), 0, None
     for g, roughness in enumerate(grid):
         if not try_candidate(roughness, tie, len(grid) > 1 or o["decay_tie"] < 0 or so_offer >= 0,
-                             fit["theta"], rougher):
+                             fit["theta"], rougher, g >= 2):
             break
         chosen = g
         if g == 0 and so_offer >= 0:
@@ -653,7 +667,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
             if roughness >= res["track_roughness"]:
                 break
             if not try_candidate(roughness, tie, True, smoothest if g == 0 else fit["theta"],
-                                 rougher):
+                                 rougher, g >= 2):
                 break
             refit_roughness = roughness
         take = False

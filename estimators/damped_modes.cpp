@@ -983,6 +983,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   Eigen::VectorXd theta(2 * modes * m + real);
   theta.head(2 * modes * m) = start_tracks(p, track, pencils, options);
   theta.tail(real) = pencils.global.real_rate_per_s;
+  const Eigen::VectorXd cold = theta;  // the start tracks, the continuation's second start
 
   // Stage 1: constant mode shapes, one free complex amplitude per mode and whitened channel. The
   // track roughness is chosen from the data by the rule below, unless given.
@@ -1000,6 +1001,11 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // whitened noise level: on noise-free data the residual is the arm's model error, and with the
   // former 60 dB noise floor tracks rough enough to chase it made every frame fail the
   // frequency-SD validity test (90 deg constant K: K_valid on 0 of 485 frames). Whitened units.
+  // Once the continuation has taken a fit rougher than the smoothest (from its third candidate
+  // on), each candidate is also fitted from the start tracks and the lower cost kept: the data
+  // have said the smooth fits miss something, and a change the smooth tracks could not follow
+  // (sharp K: x5 within 0.15 s) leaves them in a basin whose phase no local step undoes, which
+  // the continuation would carry to the roughest candidate (docs/tfa_modal.md, "Two starts").
   //
   // Decay tie, then frequency tie (TrackTie; both opt-in), each its prior SD from the data at
   // the chosen roughness along the continuation loose -> tight, 0.3 .. 0.003 (each fit starting
@@ -1042,15 +1048,36 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   double previous_rss = std::numeric_limits<double>::infinity();
   double previous_dof = 0.0;
   bool previous_sized = false;  // previous_dof counted (fit_size with_dof)
-  // Fits one candidate from `theta`; taken (stage1, theta, outcome, previous_*) when `accept`
-  // says so for its RSS and effective parameters; false when it is not usable or not taken.
+  // Fits one candidate from `start` (with `restart`, also from the start tracks: the lower cost
+  // is kept); taken (stage1, theta, outcome, previous_*) when `accept` says so for its RSS and
+  // effective parameters; false when it is not usable or not taken.
   auto try_candidate = [&](double roughness, const TrackTies& candidate_ties, bool with_dof,
-                           const Eigen::VectorXd& start, auto&& accept) {
+                           const Eigen::VectorXd& start, auto&& accept, bool restart = false) {
     auto problem = std::make_unique<VpProblem>(
         p, modes, integrals, design.functions, design.terms, design.pairs, design.weight,
         prior_rows(track, modes, roughness), candidate_ties, real, options.offsets, so_mode);
     Eigen::VectorXd candidate = start;
-    const StageOutcome o = solve(*problem, candidate, options.max_iterations);
+    StageOutcome o;
+    if (!restart || start.size() != cold.size() || start == cold) {
+      o = solve(*problem, candidate, options.max_iterations);
+    } else {
+      // Both starts, solved side by side (each with its own problem and work buffers); the
+      // lower cost is kept, the continuation's on a tie: the same result at any thread count.
+      const VpProblem twin(*problem);
+      Eigen::VectorXd other = cold;
+      StageOutcome from_cold;
+      data::parallel_for_index(2, [&](std::size_t k) {
+        if (k == 0)
+          o = solve(*problem, candidate, options.max_iterations);
+        else
+          from_cold = solve(twin, other, options.max_iterations);
+      });
+      result.iterations += from_cold.iterations;
+      if (from_cold.usable && (!o.usable || from_cold.cost < o.cost)) {
+        o = from_cold;
+        candidate = other;
+      }
+    }
     result.iterations += o.iterations;
     double rss = 0.0, dof = 0.0;
     if (!o.usable || !fit_size(*problem, candidate, with_dof, rss, dof)) return false;
@@ -1132,7 +1159,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     if (!try_candidate(grid[g], ties,
                        grid.size() > 1 || options.decay_tie < 0.0 || options.frequency_tie < 0.0 ||
                            so_offer >= 0,
-                       theta, rougher))
+                       theta, rougher, g >= 2))
       break;
     chosen = g;
     if (g == 0 && so_offer >= 0) {
@@ -1233,8 +1260,9 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     previous_rss = std::numeric_limits<double>::infinity();
     previous_dof = 0.0;
     double refit_roughness = -1.0;
+    // Two starts from the third candidate on, as in stage 1.
     for (std::size_t g = 0; g < grid.size() && grid[g] < result.track_roughness; ++g) {
-      if (!try_candidate(grid[g], ties, true, g == 0 ? smoothest : theta, rougher)) break;
+      if (!try_candidate(grid[g], ties, true, g == 0 ? smoothest : theta, rougher, g >= 2)) break;
       refit_roughness = grid[g];
     }
     bool take_refit = false;

@@ -175,32 +175,39 @@ BOOST_AUTO_TEST_CASE(at_10_db_the_mode_shapes_stay_constant_unless_the_data_ask)
   }
 }
 
-BOOST_AUTO_TEST_CASE(sharp_stiffness_is_never_returned_silently) {
-  // The sharp profile (K x 5 within ~0.3 s around 3.6 s) outruns the 0.1 s splines: the two modes
-  // merge into one track with huge, cancelling amplitudes, and K(t) is off by 30-10^5 %. Every
-  // frame that K_valid accepts must be accurate; the wrong ones must be flagged (the mode-to-data
-  // power and mode separation checks, and K positive definite).
+BOOST_AUTO_TEST_CASE(sharp_stiffness_is_followed_and_never_returned_silently) {
+  // The sharp profile (K x 5 within 0.15 s around 3.75 s; the frequencies 2.4 / 3.4 -> 5.4 /
+  // 7.7 Hz) outruns the smooth tracks where the roughness continuation begins, and continuing
+  // from them the fit used to end with the two modes merged into one track with huge, cancelling
+  // amplitudes: every frame flagged, k11 off by 57-104 % over 2.6-4.5 s. Once the continuation
+  // has gone rougher than the smoothest, each candidate is also fitted from the start tracks
+  // (docs/tfa_modal.md, "Two starts"): now k11 2.9 / 3.2 %, k12 12.1 / 10.9 %, k22 4.2 / 4.0 %
+  // at 90 / 135 degrees (seed 1). Checked against the non-common-factor targets (k11, k22 <= 10
+  // %, k12 <= 25 %; the posture targets' k12 <= 10 % is not met), and every frame K_valid
+  // accepts must be within 25 % of the truth on k11 and k22.
   for (const double direction : {90.0, 135.0}) {
     const Case c = run(m::ProfileKind::sharp, direction, 20.0, 1);
-    int accepted = 0, wrong = 0;
+    BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
+    BOOST_TEST_MESSAGE("sharp " << direction << " deg, seed 1 (roughness "
+                                << c.tfa.modes.track_roughness << "):" << report(c));
+    BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 10.0);
+    BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
+    BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 25.0);
     for (Eigen::Index i = 0; i < c.tfa.modal.time_s.size(); ++i) {
       const double t = c.tfa.modal.time_s(i);
-      if (t < 2.6 || t > 4.5) continue;
+      if (t < 2.6 || t > 4.5 || !c.tfa.parameters.valid(i)) continue;
       const Eigen::MatrixXd k = truth_at(c, false, t);
       const Eigen::MatrixXd e = c.tfa.modal.stiffness_nm_per_rad[i];
-      const bool bad = std::abs(e(0, 0) / k(0, 0) - 1.0) > 0.25 ||
-                       std::abs(e(1, 1) / k(1, 1) - 1.0) > 0.25;
-      wrong += bad;
-      if (c.tfa.parameters.valid(i)) {
-        ++accepted;
-        BOOST_CHECK_MESSAGE(!bad, direction << " deg: K(" << t << " s) accepted with k11 "
-                                            << e(0, 0) << " (true " << k(0, 0) << "), k22 "
-                                            << e(1, 1) << " (true " << k(1, 1) << ")");
-      }
+      BOOST_CHECK_MESSAGE(std::abs(e(0, 0) / k(0, 0) - 1.0) <= 0.25 &&
+                              std::abs(e(1, 1) / k(1, 1) - 1.0) <= 0.25,
+                          direction << " deg: K(" << t << " s) accepted with k11 " << e(0, 0)
+                                    << " (true " << k(0, 0) << "), k22 " << e(1, 1) << " (true "
+                                    << k(1, 1) << ")");
     }
-    BOOST_TEST_MESSAGE("sharp " << direction << " deg: " << wrong << " frames off by > 25 %, "
-                                << accepted << " accepted");
-    BOOST_CHECK_GT(wrong, 0);  // the case is hard: the check is not vacuous
+    // The frames across the change are vouched for (K_valid 55-56 % of 2.6-4.5 s: the strong
+    // mode's rough track fails the frequency-SD test early, the weak mode sinks into the noise
+    // late).
+    BOOST_CHECK_GE(k_valid_share(c, 3.7, 4.2), 0.9);
   }
 }
 
