@@ -27,19 +27,11 @@ struct Run {
 };
 
 // A scratch folder per test case, removed at the end.
-struct Scratch {
-  fs::path dir;
-  Scratch() {
-    std::random_device rd;
-    dir = fs::temp_directory_path() / ("stiffid_cli_frf_" + std::to_string(rd()));
-    fs::create_directories(dir);
-  }
-  ~Scratch() { fs::remove_all(dir); }
-};
+using Scratch = stiffid::test::TempFolder;
 
 Run run_stiffid(const std::string& args, const Scratch& scratch) {
-  const fs::path out = scratch.dir / "stdout.txt";
-  const fs::path err = scratch.dir / "stderr.txt";
+  const fs::path out = scratch.path / "stdout.txt";
+  const fs::path err = scratch.path / "stderr.txt";
   const std::string command = std::string("\"") + STIFFID_BINARY + "\" frf " + args + " >\"" +
                               out.string() + "\" 2>\"" + err.string() + "\"";
   const int status = std::system(command.c_str());
@@ -63,8 +55,8 @@ std::set<std::string> keys(const nlohmann::json& j) {
 }  // namespace
 
 BOOST_AUTO_TEST_CASE(writes_the_contract_keys_to_a_file) {
-  Scratch s;
-  const fs::path json = s.dir / "frf.json";
+  const Scratch s("cli_frf");
+  const fs::path json = s.path / "frf.json";
   const Run r = run_stiffid("\"" + kTrial +
                             "\" --inputs fx,fy --outputs x,y --nfft 256 --overlap 0.5 "
                             "-o \"" +
@@ -103,7 +95,7 @@ BOOST_AUTO_TEST_CASE(writes_the_contract_keys_to_a_file) {
 // 10-digit CSV rounding changes H by < 1e-8 relative (see estimators/test_frf.cpp); the JSON
 // carries 17 significant digits.
 BOOST_AUTO_TEST_CASE(stdout_json_matches_the_reference_frf) {
-  Scratch s;
+  const Scratch s("cli_frf");
   const Run r = run_stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y", s);
   BOOST_REQUIRE_EQUAL(r.exit_code, 0);
   const auto j = nlohmann::json::parse(r.out);
@@ -126,7 +118,7 @@ BOOST_AUTO_TEST_CASE(stdout_json_matches_the_reference_frf) {
 // Stiffness = per-frequency inverse of the compliance: K(f) H(f) = I up to round-off (1e-9 for
 // condition numbers of H below ~1e4 here).
 BOOST_AUTO_TEST_CASE(stiffness_flag_writes_the_inverse_matrix) {
-  Scratch s;
+  const Scratch s("cli_frf");
   const Run r = run_stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y --stiffness", s);
   BOOST_REQUIRE_EQUAL(r.exit_code, 0);
   const auto j = nlohmann::json::parse(r.out);
@@ -147,8 +139,8 @@ BOOST_AUTO_TEST_CASE(stiffness_flag_writes_the_inverse_matrix) {
 }
 
 BOOST_AUTO_TEST_CASE(missing_column_is_exit_2_naming_file_and_column) {
-  Scratch s;
-  const fs::path json = s.dir / "frf.json";
+  const Scratch s("cli_frf");
+  const fs::path json = s.path / "frf.json";
   const Run r =
       run_stiffid("\"" + kTrial + "\" --inputs fx,fz --outputs x,y -o \"" + json.string() + "\"", s);
   BOOST_CHECK_EQUAL(r.exit_code, 2);
@@ -159,7 +151,7 @@ BOOST_AUTO_TEST_CASE(missing_column_is_exit_2_naming_file_and_column) {
 }
 
 BOOST_AUTO_TEST_CASE(too_few_samples_for_nfft_is_exit_2_naming_the_file) {
-  Scratch s;
+  const Scratch s("cli_frf");
   const Run r = run_stiffid("\"" + kTrial + "\" --inputs fx,fy --outputs x,y --nfft 4096", s);
   BOOST_CHECK_EQUAL(r.exit_code, 2);
   BOOST_CHECK(contains(r.err, "mimo_endpoint_c25_snr20.csv"));
@@ -168,7 +160,7 @@ BOOST_AUTO_TEST_CASE(too_few_samples_for_nfft_is_exit_2_naming_the_file) {
 }
 
 BOOST_AUTO_TEST_CASE(bad_window_detrend_and_overlap_are_exit_2_naming_the_flag) {
-  Scratch s;
+  const Scratch s("cli_frf");
   for (const auto& [flag, value] :
        std::vector<std::pair<std::string, std::string>>{{"--window", "kaiser:abc"},
                                                         {"--window", "triangle"},
@@ -186,8 +178,8 @@ BOOST_AUTO_TEST_CASE(bad_window_detrend_and_overlap_are_exit_2_naming_the_flag) 
 
 // fy = 2 fx exactly: Gxx is singular at every frequency, the FRF is not identifiable.
 BOOST_AUTO_TEST_CASE(perfectly_coupled_inputs_are_exit_1_with_a_message_and_no_file) {
-  Scratch s;
-  const fs::path csv = s.dir / "coupled.csv";
+  const Scratch s("cli_frf");
+  const fs::path csv = s.path / "coupled.csv";
   {
     std::ofstream out(csv);
     out << "t,fx,fy,x,y\n";
@@ -202,7 +194,7 @@ BOOST_AUTO_TEST_CASE(perfectly_coupled_inputs_are_exit_1_with_a_message_and_no_f
       prev = fx;
     }
   }
-  const fs::path json = s.dir / "frf.json";
+  const fs::path json = s.path / "frf.json";
   const Run r = run_stiffid(
       "\"" + csv.string() + "\" --inputs fx,fy --outputs x,y -o \"" + json.string() + "\"", s);
   BOOST_CHECK_EQUAL(r.exit_code, 1);

@@ -9,6 +9,8 @@
 #include <sstream>
 #include <string>
 
+#include "tests/support/support.hpp"
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -21,49 +23,38 @@ struct Run {
   std::string err;
 };
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
-// A scratch folder per test process, removed at exit.
-struct Scratch {
-  fs::path dir = fs::temp_directory_path() / ("stiffid_cli_irf_" + std::to_string(::getpid()));
-  Scratch() { fs::create_directories(dir); }
-  ~Scratch() { fs::remove_all(dir); }
-};
-Scratch& scratch() {
-  static Scratch s;
-  return s;
+// This test program's temporary folder (removed when the program ends).
+const fs::path& scratch() {
+  static const stiffid::test::TempFolder folder("cli_irf");
+  return folder.path;
 }
 
 Run run(const std::string& args) {
-  const fs::path out = scratch().dir / "stdout.txt", err = scratch().dir / "stderr.txt";
+  const fs::path out = scratch() / "stdout.txt", err = scratch() / "stderr.txt";
   const std::string command = std::string("'") + STIFFID_BINARY + "' irf " + args + " >'" +
                               out.string() + "' 2>'" + err.string() + "'";
   const int status = std::system(command.c_str());
   Run r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
+  r.out = stiffid::test::read_text(out);
+  r.err = stiffid::test::read_text(err);
   return r;
 }
 
 }  // namespace
 
 BOOST_AUTO_TEST_CASE(reference_case_json_has_the_contract_keys_and_values) {
-  const fs::path json_path = scratch().dir / "irf.json";
+  const fs::path json_path = scratch() / "irf.json";
   const Run r = run("'" + kReference + ".csv' --inputs fx,fy --outputs x,y --lags -0.1:1.0 -o '" +
                     json_path.string() + "'");
   BOOST_REQUIRE_MESSAGE(r.exit_code == 0, r.err);
   BOOST_CHECK(r.out.empty());  // -o: nothing on stdout
-  const nlohmann::json j = nlohmann::json::parse(slurp(json_path));
+  const nlohmann::json j = nlohmann::json::parse(stiffid::test::read_text(json_path));
   for (const char* key : {"fs", "inputs", "outputs", "lag_s", "irf", "vaf_percent", "r2_percent"}) {
     BOOST_CHECK_MESSAGE(j.contains(key), std::string("missing key ") + key);
   }
-  const nlohmann::json ref = nlohmann::json::parse(slurp(kReference + ".ref.json"))["irf"];
+  const nlohmann::json ref = nlohmann::json::parse(stiffid::test::read_text(kReference + ".ref.json"))["irf"];
   BOOST_CHECK_CLOSE(j["fs"].get<double>(), 50.0, 1e-9);
   BOOST_CHECK(j["inputs"] == nlohmann::json({"fx", "fy"}));
   BOOST_CHECK(j["outputs"] == nlohmann::json({"x", "y"}));
@@ -124,7 +115,7 @@ BOOST_AUTO_TEST_CASE(missing_channel_or_file_exits_2_naming_the_file) {
   BOOST_CHECK_MESSAGE(r.err.find("mimo_endpoint_c25_snr20.csv") != std::string::npos, r.err);
   BOOST_CHECK_MESSAGE(r.err.find("fz") != std::string::npos, r.err);
 
-  const Run missing = run("'" + (scratch().dir / "nope.csv").string() +
+  const Run missing = run("'" + (scratch() / "nope.csv").string() +
                           "' --inputs fx --outputs x --lags 0:0.1");
   BOOST_CHECK_EQUAL(missing.exit_code, 2);
   BOOST_CHECK_MESSAGE(missing.err.find("nope.csv") != std::string::npos, missing.err);
@@ -138,7 +129,7 @@ BOOST_AUTO_TEST_CASE(missing_channel_or_file_exits_2_naming_the_file) {
 
 BOOST_AUTO_TEST_CASE(singular_inputs_exit_1_and_leave_no_output_file) {
   // fy = 2 fx exactly: Psi is singular, a numerical failure (tier 2), not bad input.
-  const fs::path trial = scratch().dir / "coupled.csv";
+  const fs::path trial = scratch() / "coupled.csv";
   {
     std::ofstream csv(trial);
     csv << "t,fx,fy,x\n";
@@ -147,7 +138,7 @@ BOOST_AUTO_TEST_CASE(singular_inputs_exit_1_and_leave_no_output_file) {
       csv << k * 0.01 << ',' << f << ',' << 2.0 * f << ',' << std::sin(0.37 * (k - 2)) << '\n';
     }
   }
-  const fs::path json_path = scratch().dir / "singular.json";
+  const fs::path json_path = scratch() / "singular.json";
   const Run r = run("'" + trial.string() + "' --inputs fx,fy --outputs x --lags 0:0.1 -o '" +
                     json_path.string() + "'");
   BOOST_CHECK_EQUAL(r.exit_code, 1);

@@ -10,6 +10,7 @@
 #include "data/csv.hpp"
 #include "data/error.hpp"
 #include "data/output.hpp"
+#include "tests/support/support.hpp"
 
 namespace d = stiffid::data;
 
@@ -93,13 +94,13 @@ BOOST_AUTO_TEST_CASE(written_trial_reads_back_bit_exact) {
   trial.sample_rate_hz = 4000.0;
   trial.add_channel("th1", "rad", Eigen::VectorXd::LinSpaced(9, 0.1, 0.9).array().sin());
   trial.add_channel("fx", "N", Eigen::VectorXd::Random(9));
-  const auto path = (std::filesystem::temp_directory_path() / "stiffid_roundtrip.csv").string();
+  const stiffid::test::TempFolder folder("csv_roundtrip");
+  const std::string path = folder.file("roundtrip.csv");
   d::write_trial_csv(path, trial, true);
   const auto back = d::read_trial_csv(path);
   BOOST_CHECK_CLOSE(back.sample_rate_hz, 4000.0, 1e-9);
   BOOST_CHECK(back.samples == trial.samples);
   BOOST_CHECK_EQUAL(back.units[0], "rad");
-  std::filesystem::remove(path);
 }
 
 BOOST_AUTO_TEST_CASE(json_text_is_nlohmanns_indented_dump_byte_for_byte) {
@@ -119,14 +120,13 @@ BOOST_AUTO_TEST_CASE(json_text_is_nlohmanns_indented_dump_byte_for_byte) {
 }
 
 BOOST_AUTO_TEST_CASE(atomic_write_leaves_no_temporary_and_fails_cleanly) {
-  const auto dir = std::filesystem::temp_directory_path() / "stiffid_atomic";
-  std::filesystem::create_directories(dir);
+  const stiffid::test::TempFolder folder("atomic");
+  const std::filesystem::path& dir = folder.path;
   d::write_file_atomically((dir / "out.json").string(), "{}\n");
   int files = 0;
   for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir)) ++files;
   BOOST_CHECK_EQUAL(files, 1);
   BOOST_CHECK_THROW(d::write_file_atomically("/nonexistent/dir/out.json", "{}"), stiffid::InputError);
-  std::filesystem::remove_all(dir);
 }
 
 namespace {

@@ -45,11 +45,11 @@ nlohmann::json read_json(const fs::path& path) {
   return nlohmann::json::parse(stiffid::test::read_text(path));
 }
 
+// A fresh path `name` in this test program's temporary folder (removed when the program ends).
 fs::path scratch(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("stiffid_tfa_cli_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  fs::remove(dir / name);
-  return dir / name;
+  static const stiffid::test::TempFolder folder("tfa_cli");
+  fs::remove(folder.path / name);
+  return folder.path / name;
 }
 
 }  // namespace

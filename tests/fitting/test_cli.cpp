@@ -9,6 +9,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "tests/support/support.hpp"
+
 namespace {
 
 const std::string kDir = std::string(STIFFID_TEST_DATA_DIR) + "/fitting/";
@@ -19,8 +21,11 @@ int run(const std::string& args) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+// A fresh path `name` in this test program's temporary folder (removed when the program ends).
 std::string temp(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("stiffid_fit_cli_" + name)).string();
+  static const stiffid::test::TempFolder folder("fit_cli");
+  std::filesystem::remove(folder.path / name);
+  return folder.file(name);
 }
 
 nlohmann::json read(const std::string& path) {
@@ -50,7 +55,6 @@ BOOST_AUTO_TEST_CASE(fit_writes_the_issue_json) {
   BOOST_TEST(j.at("parameters").at("K").at("unit") == "N/m");
   // fixture truth K = [[500, 100], [100, 300]] N/m
   BOOST_TEST(std::abs(j["parameters"]["K"]["value"][0][0].get<double>() - 500.0) < 0.05);
-  std::filesystem::remove(out);
 }
 
 BOOST_AUTO_TEST_CASE(fit_one_dof_gives_matrices) {
@@ -58,7 +62,6 @@ BOOST_AUTO_TEST_CASE(fit_one_dof_gives_matrices) {
   BOOST_TEST(run("fit pt " + kDir + "pt1.csv --inputs f1 --outputs x1 --starts 1 -o " + out) == 0);
   const nlohmann::json j = read(out);
   BOOST_TEST(j["parameters"]["KS"]["value"][0].size() == 1u);
-  std::filesystem::remove(out);
 }
 
 BOOST_AUTO_TEST_CASE(fit_bad_input_exits_2_and_non_convergence_exits_1_without_output) {
@@ -93,5 +96,4 @@ BOOST_AUTO_TEST_CASE(regress_writes_the_issue_json) {
   // one direction is fewer than the unknowns: exit 2
   BOOST_TEST(run("regress force-pulse " + kDir + "pulse_2.5_d0.csv -o " + out + "x") == 2);
   BOOST_TEST(run("regress sideways " + kDir + "pulse_2.5_d0.csv") == 2);
-  std::filesystem::remove(out);
 }

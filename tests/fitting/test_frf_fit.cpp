@@ -12,10 +12,10 @@
 #include <nlohmann/json.hpp>
 #include <string>
 #include <sys/wait.h>
-#include <unistd.h>
 
 #include "data/error.hpp"
 #include "fitting/frf_fit.hpp"
+#include "tests/support/support.hpp"
 
 namespace fit = stiffid::fitting;
 namespace fs = std::filesystem;
@@ -114,20 +114,19 @@ BOOST_AUTO_TEST_CASE(bad_input_is_an_input_error) {
   fit::FrfFitOptions band;
   band.band_low_hz = 20.0;  // no frequency there
   BOOST_CHECK_THROW(fit::fit_frf(t, band), stiffid::InputError);
-  const fs::path dir = fs::temp_directory_path() / ("stiffid_frf_fit_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const stiffid::test::TempFolder folder("frf_fit");
+  const fs::path& dir = folder.path;
   std::ofstream(dir / "bad.json") << R"({"inputs": ["fx"], "outputs": ["x"], "frequency_hz": [1, 2]})";
   BOOST_CHECK_THROW(fit::read_frf_json((dir / "bad.json").string()), stiffid::InputError);
   BOOST_CHECK_THROW(fit::read_frf_json((dir / "missing.json").string()), stiffid::InputError);
-  fs::remove_all(dir);
 }
 
 BOOST_AUTO_TEST_CASE(cli_chain_recovers_the_simulated_endpoint_model) {
   // 60 s at 50 Hz of the reference endpoint model (I, B, K above; exact FOH discretization), no
   // noise; Welch FRF with 512-point segments; KV fit over 0.2-12 Hz. What remains is the Welch
   // bias (leakage) and the sampled-vs-continuous response: within 2 % of the truth.
-  const fs::path dir = fs::temp_directory_path() / ("stiffid_frf_cli_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const stiffid::test::TempFolder folder("frf_cli");
+  const fs::path& dir = folder.path;
   const std::string spec = std::string(STIFFID_SOURCE_DIR) + "/models/specs/perreault_endpoint_c0.json";
   const std::string trial = (dir / "trial.csv").string(), frf = (dir / "frf.json").string(),
                     out = (dir / "fit.json").string();
@@ -147,5 +146,4 @@ BOOST_AUTO_TEST_CASE(cli_chain_recovers_the_simulated_endpoint_model) {
   }
   BOOST_CHECK_EQUAL(run("fit duffing --frf " + frf), 2);
   BOOST_CHECK_EQUAL(run("fit kv --frf " + frf + " --band 5:1"), 2);
-  fs::remove_all(dir);
 }

@@ -9,6 +9,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "tests/support/support.hpp"
+
 namespace fs = std::filesystem;
 
 namespace {
@@ -20,18 +22,10 @@ struct Run {
   std::string out, err;
 };
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-fs::path scratch() {
-  const fs::path dir =
-      fs::temp_directory_path() / ("stiffid_anova_cli_" + std::to_string(getpid()));
-  fs::create_directories(dir);
-  return dir;
+// This test program's temporary folder (removed when the program ends).
+const fs::path& scratch() {
+  static const stiffid::test::TempFolder folder("anova_cli");
+  return folder.path;
 }
 
 Run run(const std::string& args) {
@@ -41,8 +35,8 @@ Run run(const std::string& args) {
   const int status = std::system(cmd.c_str());
   Run r;
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = slurp(dir / "out");
-  r.err = slurp(dir / "err");
+  r.out = stiffid::test::read_text(dir / "out");
+  r.err = stiffid::test::read_text(dir / "err");
   return r;
 }
 
@@ -78,7 +72,7 @@ BOOST_AUTO_TEST_CASE(output_file_gets_json_and_stdout_the_table) {
   BOOST_REQUIRE_EQUAL(r.code, 0);
   BOOST_CHECK(r.out.find("method") != std::string::npos);
   BOOST_CHECK(r.out.find("Mauchly") != std::string::npos);
-  const auto j = nlohmann::json::parse(slurp(out));
+  const auto j = nlohmann::json::parse(stiffid::test::read_text(out));
   BOOST_CHECK_EQUAL(j["pairwise"].size(), 6u);
   BOOST_CHECK_EQUAL(j["mauchly"][0]["effect"], "method");
 }

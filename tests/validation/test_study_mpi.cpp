@@ -6,15 +6,12 @@
 #include <sstream>
 #include <string>
 
+#include "tests/support/support.hpp"
+
 namespace fs = std::filesystem;
+using stiffid::test::read_text;
 
 namespace {
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 int run(const std::string& command) {
   const int status = std::system(command.c_str());
@@ -27,9 +24,8 @@ BOOST_AUTO_TEST_CASE(two_mpi_ranks_give_the_single_process_table) {
     BOOST_TEST_MESSAGE("mpirun not installed: the MPI backend is not exercised");
     return;
   }
-  const fs::path dir = fs::temp_directory_path() / "stiffid_test_study_mpi";
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const stiffid::test::TempFolder folder("study_mpi");
+  const fs::path& dir = folder.path;
   std::ofstream(dir / "spec.json") << R"({"name": "mpi", "seed": 5, "replicates": 3, "designs": [
     {"name": "d", "evaluator": "synthetic", "factors": {"mean": [0, 1, 2, 3, 4, 5, 6]},
      "template": {"mean": "${mean}", "samples": 20}}]})";
@@ -38,13 +34,11 @@ BOOST_AUTO_TEST_CASE(two_mpi_ranks_give_the_single_process_table) {
   BOOST_REQUIRE_EQUAL(run(bin + " study " + spec + " --store " + (dir / "one.sqlite").string() +
                           " --csv " + (dir / "one.csv").string() + " 2> /dev/null"),
                       0);
-  BOOST_REQUIRE_EQUAL(run("mpirun --allow-run-as-root --oversubscribe -n 2 " + bin + " study " +
-                          spec + " --store " + (dir / "two.sqlite").string() + " --csv " +
-                          (dir / "two.csv").string() + " > " + (dir / "mpi.log").string() +
-                          " 2>&1"),
-                      0);
-  const std::string one = slurp(dir / "one.csv");
+  const int mpi = run("mpirun --allow-run-as-root --oversubscribe -n 2 " + bin + " study " + spec +
+                      " --store " + (dir / "two.sqlite").string() + " --csv " +
+                      (dir / "two.csv").string() + " > " + (dir / "mpi.log").string() + " 2>&1");
+  BOOST_REQUIRE_MESSAGE(mpi == 0, "mpirun exit " << mpi << ":\n" << read_text(dir / "mpi.log"));
+  const std::string one = read_text(dir / "one.csv");
   BOOST_CHECK_GT(one.size(), 100u);
-  BOOST_CHECK(one == slurp(dir / "two.csv"));  // same cells, seeds and values, byte for byte
-  fs::remove_all(dir);
+  BOOST_CHECK(one == read_text(dir / "two.csv"));  // same cells, seeds and values, byte for byte
 }
