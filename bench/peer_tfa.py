@@ -7,10 +7,11 @@ ridges, the chirped frame fits (Gauss-Newton on the damped modes; pass 1 every 1
 chirp rates kept where an F-type test against the pre-onset noise asks for them, the start the
 best of three frames, the fit bins following the fits; pass 2 with the rates held at the
 Savitzky-Golay slopes of pass 1's tracks; the frames between moved from the nearest), Savitzky-
-Golay smoothing, modal analysis (eqs 45-48). No validity flags or bridging. Prints K(t)
-statistics as JSON; its medians agree with stiffid's to ~1e-9 relative on the scipy constant-
-and sigmoid-K posture fixtures (tests/data/tfa), and differ where stiffid bridges invalid frames
-(sharp K).
+Golay smoothing, modal analysis (eqs 45-48, eq 43 weighted by the modes' amplitude-to-noise
+ratios). No validity flags or bridging. Prints K(t)
+statistics as JSON; its medians agree with stiffid's (K to 5e-9, C to 4e-8 relative) on the
+scipy constant- and sigmoid-K posture fixtures (tests/data/tfa), and differ where stiffid bridges
+invalid frames (sharp K).
 
     python3 peer_tfa.py TRIAL.csv --onset 2.5          # identify
     python3 peer_tfa.py --make-trial TRIAL.csv         # write a 5 s, 4 kHz posture trial
@@ -113,7 +114,8 @@ def identify(path, onset_s, window_s=0.75, hop_s=0.0025, fmin=0.5, fmax=20.0, pe
     used = min(onset - int(round(0.05 * fs)), int(round(1.0 * fs)))
     before = np.column_stack([np.convolve(ang[onset - used:onset, c] - th0[c], taps, mode="same") for c in range(2)])
     noise = before[half_f:used - half_f:d]
-    noise_trace = np.trace(np.atleast_2d(np.cov(noise.T))) if noise.shape[0] > 16 else 0.0
+    noise_cov = np.atleast_2d(np.cov(noise.T)) if noise.shape[0] > 16 else np.zeros((2, 2))
+    noise_trace = np.trace(noise_cov)
     fa, dt = fs / d, d / fs
     edge = (half_f + d - 1) // d
     begin = int(np.ceil((pulse_s + half_f / fs) / dt - 1e-9))
@@ -395,10 +397,16 @@ def identify(path, onset_s, window_s=0.75, hop_s=0.0025, fmin=0.5, fmax=20.0, pe
     shapes = savgol_filter(shapes, w_sg, 3, axis=0, mode="interp")
     k = np.zeros((frames, 2, 2))
     c = np.zeros((frames, 2, 2))
+    # Eq 43 weighted by the modes' amplitude-to-noise power 0.5 a^H (Sigma + floor I)^-1 a, the
+    # floor 100 dB below the strongest mode's peak power per channel (ridge.cpp, modal_analysis.cpp):
+    # P is the polar factor of the unit shapes times diag(weights).
+    floor = 1e-10 * (0.5 * (np.abs(amp) ** 2).sum(axis=2) / 2).max() + 1e-300
+    inv = np.linalg.inv(noise_cov + floor * np.eye(2))
+    weight = 0.5 * np.einsum("tjc,cd,tjd->tj", amp.conj(), inv, amp).real
     for m in range(frames):
         p = root @ shapes[m].T
         p /= np.linalg.norm(p, axis=0)
-        uu, _, vv = np.linalg.svd(p)
+        uu, _, vv = np.linalg.svd(p * (weight[m] / weight[m].max()))
         p = uu @ vv
         k[m] = root @ p @ np.diag(eta2[m]) @ p.T @ root
         c[m] = root @ p @ np.diag(2 * gamma[m]) @ p.T @ root
