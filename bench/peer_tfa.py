@@ -8,10 +8,9 @@ chirp rates kept where an F-type test against the pre-onset noise asks for them,
 best of three frames, the fit bins following the fits; pass 2 with the rates held at the
 Savitzky-Golay slopes of pass 1's tracks; the frames between moved from the nearest), Savitzky-
 Golay smoothing, modal analysis (eqs 45-48, eq 43 weighted by the modes' amplitude-to-noise
-ratios). No validity flags or bridging. Prints K(t)
-statistics as JSON; its medians agree with stiffid's (K to 5e-9, C to 4e-8 relative) on the
-scipy constant- and sigmoid-K posture fixtures (tests/data/tfa), and differ where stiffid bridges
-invalid frames (sharp K).
+ratios). No validity flags or bridging. Prints K(t) statistics as JSON; its medians agree with
+stiffid's (K to 5e-9, C to 4e-8 relative) on the scipy constant- and sigmoid-K posture fixtures
+(tests/data/tfa), and differ where stiffid bridges invalid frames (sharp K).
 
     python3 peer_tfa.py TRIAL.csv --onset 2.5          # identify
     python3 peer_tfa.py --make-trial TRIAL.csv         # write a 5 s, 4 kHz posture trial
