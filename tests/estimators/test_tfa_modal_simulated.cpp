@@ -3,9 +3,12 @@
 // Voigt joints, K0 = [35 5; 5 20] N m/rad and C0 = 0.01 K0 N m s/rad, a 5 N x 20 ms impulse at
 // 2.5 s, 20 dB output noise, default options. The truth is the simulator's K(t), C(t). One case
 // checks the spectrogram method's frame fits on the same trials.
+#include <tbb/task_arena.h>
+
 #include <boost/test/unit_test.hpp>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -209,6 +212,27 @@ BOOST_AUTO_TEST_CASE(sharp_stiffness_is_followed_and_never_returned_silently) {
     // late).
     BOOST_CHECK_GE(k_valid_share(c, 3.7, 4.2), 0.9);
   }
+}
+
+BOOST_AUTO_TEST_CASE(the_modal_fit_is_bit_identical_at_any_thread_count) {
+  // The start's matrix pencils and the roughness continuation's two starts run in parallel; each
+  // piece of work is fixed and the results are combined in a fixed order (the lower cost, the
+  // continuation's on a tie), so one thread and all the machine's give the same bits. Sharp K at
+  // 90 degrees goes rough and takes both starts.
+  const Case all = run(m::ProfileKind::sharp, 90.0, 20.0, 1);
+  std::optional<Case> one;
+  tbb::task_arena single(1);
+  single.execute([&] { one = run(m::ProfileKind::sharp, 90.0, 20.0, 1); });
+  BOOST_REQUIRE(all.tfa.status.ok && one->tfa.status.ok);
+  BOOST_CHECK_EQUAL(all.tfa.modes.iterations, one->tfa.modes.iterations);
+  BOOST_CHECK_EQUAL(all.tfa.modes.track_roughness, one->tfa.modes.track_roughness);
+  BOOST_REQUIRE_EQUAL(all.tfa.modal.time_s.size(), one->tfa.modal.time_s.size());
+  int differing = 0;
+  for (Eigen::Index i = 0; i < all.tfa.modal.time_s.size(); ++i) {
+    differing += all.tfa.modal.stiffness_nm_per_rad[i] != one->tfa.modal.stiffness_nm_per_rad[i];
+    differing += all.tfa.modal.damping_nms_per_rad[i] != one->tfa.modal.damping_nms_per_rad[i];
+  }
+  BOOST_CHECK_EQUAL(differing, 0);
 }
 
 BOOST_AUTO_TEST_CASE(spectrogram_frame_fits_that_are_degenerate_are_flagged_and_not_followed) {
