@@ -12,6 +12,7 @@
 #include "tests/support/support.hpp"
 
 namespace fs = std::filesystem;
+using stiffid::test::read_text;
 
 namespace {
 
@@ -37,8 +38,8 @@ Run run(const std::string& args) {
   const int status = std::system(command.c_str());
   Run r;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = stiffid::test::read_text(out);
-  r.err = stiffid::test::read_text(err);
+  r.out = read_text(out);
+  r.err = read_text(err);
   return r;
 }
 
@@ -50,11 +51,11 @@ BOOST_AUTO_TEST_CASE(reference_case_json_has_the_contract_keys_and_values) {
                     json_path.string() + "'");
   BOOST_REQUIRE_MESSAGE(r.exit_code == 0, r.err);
   BOOST_CHECK(r.out.empty());  // -o: nothing on stdout
-  const nlohmann::json j = nlohmann::json::parse(stiffid::test::read_text(json_path));
+  const nlohmann::json j = nlohmann::json::parse(read_text(json_path));
   for (const char* key : {"fs", "inputs", "outputs", "lag_s", "irf", "vaf_percent", "r2_percent"}) {
     BOOST_CHECK_MESSAGE(j.contains(key), std::string("missing key ") + key);
   }
-  const nlohmann::json ref = nlohmann::json::parse(stiffid::test::read_text(kReference + ".ref.json"))["irf"];
+  const nlohmann::json ref = nlohmann::json::parse(read_text(kReference + ".ref.json"))["irf"];
   BOOST_CHECK_CLOSE(j["fs"].get<double>(), 50.0, 1e-9);
   BOOST_CHECK(j["inputs"] == nlohmann::json({"fx", "fy"}));
   BOOST_CHECK(j["outputs"] == nlohmann::json({"x", "y"}));

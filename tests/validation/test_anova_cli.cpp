@@ -12,6 +12,7 @@
 #include "tests/support/support.hpp"
 
 namespace fs = std::filesystem;
+using stiffid::test::read_text;
 
 namespace {
 
@@ -35,8 +36,8 @@ Run run(const std::string& args) {
   const int status = std::system(cmd.c_str());
   Run r;
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = stiffid::test::read_text(dir / "out");
-  r.err = stiffid::test::read_text(dir / "err");
+  r.out = read_text(dir / "out");
+  r.err = read_text(dir / "err");
   return r;
 }
 
@@ -72,7 +73,7 @@ BOOST_AUTO_TEST_CASE(output_file_gets_json_and_stdout_the_table) {
   BOOST_REQUIRE_EQUAL(r.code, 0);
   BOOST_CHECK(r.out.find("method") != std::string::npos);
   BOOST_CHECK(r.out.find("Mauchly") != std::string::npos);
-  const auto j = nlohmann::json::parse(stiffid::test::read_text(out));
+  const auto j = nlohmann::json::parse(read_text(out));
   BOOST_CHECK_EQUAL(j["pairwise"].size(), 6u);
   BOOST_CHECK_EQUAL(j["mauchly"][0]["effect"], "method");
 }
