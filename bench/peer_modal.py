@@ -651,8 +651,8 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
 
     # Shape refit (damped_modes.cpp): when stage 1 chose tracks rougher than the smoothest, the
     # shape stage from the smoothest fit, the roughness continuation in it below stage 1's
-    # choice, the weight re-chosen at its tracks; kept when its BIC is lower and its frequency
-    # tracks do not cross.
+    # choice (every candidate from two starts), the weight re-chosen at its tracks; kept when its
+    # BIC is lower and its frequency tracks stay 1 / (4 shape knot spacing) apart.
     res["shape_refit"] = False
     if (o.get("shape_refit", True) and shape is not None and o["shape_weight"] < 0
             and len(grid) > 1 and tie.sd == 0 and smoothest is not None
@@ -667,7 +667,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
             if roughness >= res["track_roughness"]:
                 break
             if not try_candidate(roughness, tie, True, smoothest if g == 0 else fit["theta"],
-                                 rougher, g >= 2):
+                                 rougher, True):
                 break
             refit_roughness = roughness
         take = False
@@ -686,9 +686,11 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                     design["weight"] = w
             omega = track.values(p["tau_s"]) @ fit["theta"][:2 * modes * m].reshape(
                 modes, 2, m)[:, 1, :].T
-            crossing = any(np.ptp(np.sign(omega[:, j] - omega[:, k])) > 1
-                           for j in range(modes) for k in range(j + 1, modes))
-            take = lower_bic(fit["problem"], fit["theta"], first[0], first[1]) and not crossing
+            min_gap = 2.0 * np.pi / (4.0 * o["shape_knot_spacing_s"])
+            too_close = any(np.ptp(np.sign(omega[:, j] - omega[:, k])) > 1
+                            or np.min(np.abs(omega[:, j] - omega[:, k])) < min_gap
+                            for j in range(modes) for k in range(j + 1, modes))
+            take = lower_bic(fit["problem"], fit["theta"], first[0], first[1]) and not too_close
         if take:
             final, theta, converged = fit["problem"], fit["theta"], fit["converged"]
             res["track_roughness"], res["shape_weight"] = refit_roughness, design["weight"]

@@ -1260,21 +1260,28 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     previous_rss = std::numeric_limits<double>::infinity();
     previous_dof = 0.0;
     double refit_roughness = -1.0;
-    // Two starts from the third candidate on, as in stage 1.
+    // Every candidate from two starts (the continuation's fit and the start tracks): the start
+    // tracks were not fitted in this design, so they are a start of their own from the first
+    // candidate on (stage 1 takes them from the third).
     for (std::size_t g = 0; g < grid.size() && grid[g] < result.track_roughness; ++g) {
-      if (!try_candidate(grid[g], ties, true, g == 0 ? smoothest : theta, rougher, g >= 2)) break;
+      if (!try_candidate(grid[g], ties, true, g == 0 ? smoothest : theta, rougher, true)) break;
       refit_roughness = grid[g];
     }
     bool take_refit = false;
-    // Tracks that cross: on a coupled arm the two frequencies avoid each other (a crossing is
-    // one mode's shape taking over the other's), so such a refit is not taken.
-    auto crossing = [&](const Eigen::VectorXd& at) {
+    // Tracks that cross or come close: on a coupled arm the two frequencies avoid each other.
+    // Two modes whose frequencies lie within a quarter of the shape knots' rate, 1 / (4 h),
+    // beat with a period of four shape knots or more, which the shape splines follow: one mode
+    // with a varying shape then explains both (a crossing is one mode's shape taking over the
+    // other's), and the data cannot tell the two explanations apart. Such a refit is not taken.
+    const double min_gap_rad_per_s = 2.0 * M_PI / (4.0 * options.shape_knot_spacing_s);
+    auto too_close = [&](const Eigen::VectorXd& at) {
       const Eigen::MatrixXd values = track.values(p.tau_s);
       for (int j = 0; j < modes; ++j)
         for (int l = j + 1; l < modes; ++l) {
           const Eigen::ArrayXd gap =
               values * (at.segment((2 * j + 1) * m, m) - at.segment((2 * l + 1) * m, m));
           if (gap.maxCoeff() > 0.0 && gap.minCoeff() < 0.0) return true;
+          if (gap.abs().minCoeff() < min_gap_rad_per_s) return true;
         }
       return false;
     };
@@ -1283,7 +1290,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       again.weight = gcv_weight(design, theta, refit_roughness);
       if (again.weight != design.weight && fit_design(again, refit_roughness, stage1))
         design.weight = again.weight;
-      take_refit = lower_bic(*stage1, theta, *first_problem, first_theta) && !crossing(theta);
+      take_refit = lower_bic(*stage1, theta, *first_problem, first_theta) && !too_close(theta);
     }
     if (take_refit) {
       final_problem = std::move(stage1);

@@ -110,7 +110,9 @@ struct DampedModesOptions {
                                         ///< when the constant-shape continuation chose tracks
                                         ///< rougher than the smoothest, also fit smoother tracks
                                         ///< with the varying shapes from the start; kept when
-                                        ///< its BIC is lower (docs/tfa_modal.md, "Shape refit")
+                                        ///< its BIC is lower and its frequencies stay at least
+                                        ///< 1 / (4 shape_knot_spacing_s) Hz apart
+                                        ///< (docs/tfa_modal.md, "Shape refit")
   bool second_order = true;             ///< design whole: also fit the quadratic distortion of
                                         ///< the strongest mode j (the arm's Coriolis and
                                         ///< centripetal terms): s_k exp(2 Re Phi_j) + Re(h_k
