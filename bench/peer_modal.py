@@ -538,6 +538,15 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     # The linear design of the candidates: constant shapes (stage 1) or slowly varying ones.
     design = dict(functions=constant, terms=terms, pairs=[], weight=0.0)
 
+    def merged(at):
+        """Two modes whose frequency tracks agree within min_mode_separation everywhere: one
+        mode counted twice (damped_modes.cpp)."""
+        omega = track.values(p["tau_s"]) @ at[:2 * modes * m].reshape(modes, 2, m)[:, 1, :].T
+        return any(np.max(np.abs(omega[:, j] - omega[:, k])
+                          / (0.5 * (np.abs(omega[:, j]) + np.abs(omega[:, k]))))
+                   < o["min_mode_separation"]
+                   for j in range(modes) for k in range(j + 1, modes))
+
     def try_candidate(roughness, tie, with_dof, start, accept, restart=False):
         """Fits one candidate from start (with restart, also from the start tracks, the lower
         cost kept); taken (fit) when accept(rss, dof, price) says so; False when it is not
@@ -546,13 +555,25 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                             design["weight"], prior_rows(track, modes, roughness), tie, so[0])
         candidate, usable, conv, nfev = solve(problem, start, o["max_iterations"])
         res["iterations"] += nfev
-        if restart and start.size == cold.size and not np.array_equal(start, cold):
+        check = fit["problem"] is not None  # merged fits are refused once one has been taken
+
+        def is_merged(ok, at):
+            return check and ok and merged(at)
+
+        other_start = start.size == cold.size and not np.array_equal(start, cold)
+        if other_start and (restart or is_merged(usable, candidate)):
             other, usable2, conv2, nfev2 = solve(problem, cold, o["max_iterations"])
             res["iterations"] += nfev2
-            if usable2 and (not usable or cost(problem, other) < cost(problem, candidate)):
+            # The start tracks' fit replaces a fit that is not usable, or merged while it is not,
+            # or (equally merged) of higher cost.
+            if usable2 and (not usable
+                            or (is_merged(usable, candidate) != is_merged(usable2, other)
+                                and is_merged(usable, candidate))
+                            or (is_merged(usable, candidate) == is_merged(usable2, other)
+                                and cost(problem, other) < cost(problem, candidate))):
                 candidate, usable, conv = other, usable2, conv2
         size = fit_size(problem, candidate, with_dof) if usable else None
-        if size is None:
+        if size is None or is_merged(usable, candidate):
             return False
         rss, dof = size
         rows = problem.rd

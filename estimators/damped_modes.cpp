@@ -1048,9 +1048,32 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   double previous_rss = std::numeric_limits<double>::infinity();
   double previous_dof = 0.0;
   bool previous_sized = false;  // previous_dof counted (fit_size with_dof)
+  // omega_j(tau) of every mode at theta `at` (samples x modes), rad/s.
+  auto frequency_tracks = [&](const Eigen::VectorXd& at) {
+    const Eigen::MatrixXd values = track.values(p.tau_s);
+    Eigen::ArrayXXd omega(values.rows(), modes);
+    for (int j = 0; j < modes; ++j) omega.col(j) = values * at.segment((2 * j + 1) * m, m);
+    return omega;
+  };
+  // Two modes whose frequency tracks agree within min_mode_separation of their mean at every
+  // sample are one mode counted twice: a confluent pair (A + B tau) exp(Phi) with large,
+  // cancelling amplitudes, not two modes of the arm (the validity checks flag every frame of
+  // such a fit). The roughness continuation does not take such a candidate, and of its two starts
+  // the one that does not merge is preferred; a merged fit from the continuation's start alone
+  // gets the start tracks as a second start (docs/tfa_modal.md, "Merged modes").
+  auto merged = [&](const Eigen::VectorXd& at) {
+    const Eigen::ArrayXXd omega = frequency_tracks(at);
+    for (int j = 0; j < modes; ++j)
+      for (int l = j + 1; l < modes; ++l) {
+        const Eigen::ArrayXd relative_gap = (omega.col(j) - omega.col(l)).abs() /
+                                            (0.5 * (omega.col(j).abs() + omega.col(l).abs()));
+        if (relative_gap.maxCoeff() < options.min_mode_separation) return true;
+      }
+    return false;
+  };
   // Fits one candidate from `start` (with `restart`, also from the start tracks: the lower cost
   // is kept); taken (stage1, theta, outcome, previous_*) when `accept` says so for its RSS and
-  // effective parameters; false when it is not usable or not taken.
+  // effective parameters; false when it is not usable, merged or not taken.
   auto try_candidate = [&](double roughness, const TrackTies& candidate_ties, bool with_dof,
                            const Eigen::VectorXd& start, auto&& accept, bool restart = false) {
     auto problem = std::make_unique<VpProblem>(
@@ -1058,11 +1081,36 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
         prior_rows(track, modes, roughness), candidate_ties, real, options.offsets, so_mode);
     Eigen::VectorXd candidate = start;
     StageOutcome o;
-    if (!restart || start.size() != cold.size() || start == cold) {
+    // Merged modes (`merged`) are refused once a fit has been taken (something to fall back on).
+    const bool check = stage1 != nullptr;
+    auto is_merged = [&](const StageOutcome& so, const Eigen::VectorXd& at) {
+      return check && so.usable && merged(at);
+    };
+    // Takes the fit from the start tracks when it is usable and the kept one is not, or is
+    // merged while it is not, or (equally merged) has the higher cost: the same choice at any
+    // thread count (the continuation's on a tie).
+    auto prefer_cold = [&](const StageOutcome& from_cold, const Eigen::VectorXd& other) {
+      if (!from_cold.usable) return false;
+      if (!o.usable) return true;
+      const bool merged_kept = is_merged(o, candidate), merged_cold = is_merged(from_cold, other);
+      if (merged_kept != merged_cold) return merged_kept;
+      return from_cold.cost < o.cost;
+    };
+    const bool other_start = start.size() == cold.size() && start != cold;
+    if (!restart || !other_start) {
       o = solve(*problem, candidate, options.max_iterations);
+      // A merged fit from the continuation: the start tracks get their chance.
+      if (other_start && is_merged(o, candidate)) {
+        Eigen::VectorXd other = cold;
+        const StageOutcome from_cold = solve(*problem, other, options.max_iterations);
+        result.iterations += from_cold.iterations;
+        if (prefer_cold(from_cold, other)) {
+          o = from_cold;
+          candidate = other;
+        }
+      }
     } else {
-      // Both starts, solved side by side (each with its own problem and work buffers); the
-      // lower cost is kept, the continuation's on a tie: the same result at any thread count.
+      // Both starts, solved side by side (each with its own problem and work buffers).
       const VpProblem twin(*problem);
       Eigen::VectorXd other = cold;
       StageOutcome from_cold;
@@ -1073,7 +1121,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
           from_cold = solve(twin, other, options.max_iterations);
       });
       result.iterations += from_cold.iterations;
-      if (from_cold.usable && (!o.usable || from_cold.cost < o.cost)) {
+      if (prefer_cold(from_cold, other)) {
         o = from_cold;
         candidate = other;
       }
@@ -1081,6 +1129,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     result.iterations += o.iterations;
     double rss = 0.0, dof = 0.0;
     if (!o.usable || !fit_size(*problem, candidate, with_dof, rss, dof)) return false;
+    if (is_merged(o, candidate)) return false;
     const double rows = problem->data_rows();
     const double variance = std::max(1.0, rss / std::max(1.0, rows - dof));
     if (stage1 && !accept(rss, dof, std::log(rows) * variance)) return false;
@@ -1275,11 +1324,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     // other's), and the data cannot tell the two explanations apart. Such a refit is not taken.
     const double min_gap_rad_per_s = 2.0 * M_PI / (4.0 * options.shape_knot_spacing_s);
     auto too_close = [&](const Eigen::VectorXd& at) {
-      const Eigen::MatrixXd values = track.values(p.tau_s);
+      const Eigen::ArrayXXd omega = frequency_tracks(at);
       for (int j = 0; j < modes; ++j)
         for (int l = j + 1; l < modes; ++l) {
-          const Eigen::ArrayXd gap =
-              values * (at.segment((2 * j + 1) * m, m) - at.segment((2 * l + 1) * m, m));
+          const Eigen::ArrayXd gap = omega.col(j) - omega.col(l);
           if (gap.maxCoeff() > 0.0 && gap.minCoeff() < 0.0) return true;
           if (gap.abs().minCoeff() < min_gap_rad_per_s) return true;
         }

@@ -12,6 +12,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <tuple>
 
 #include "estimators/tfa.hpp"
 #include "models/presets.hpp"
@@ -323,6 +324,28 @@ BOOST_AUTO_TEST_CASE(noise_free_trials_are_valid_and_accurate) {
     BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 7.5);
     BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
     BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 10.0);
+  }
+}
+
+BOOST_AUTO_TEST_CASE(a_merged_pair_of_modes_is_never_taken_by_the_roughness_continuation) {
+  // Two modes with the same frequency track everywhere are one mode counted twice, with large
+  // cancelling amplitudes. Sigmoid K at 45 degrees, 20 dB, noise seed 6: the continuation took
+  // such a fit at roughness 1 (every frame flagged, k22 46 % over 2.6-4.5 s). Refused, it stops
+  // at 0.1, where the fit from the start tracks is distinct. Sigmoid K at 0 degrees, noise-free:
+  // the 0.01 candidate, fitted from the 0.003 fit, merges. The start tracks then get their
+  // chance; refusing the merged fit alone would have stopped the continuation at 0.003 (k11 42 %).
+  // Issue 7's 20 dB posture targets over 2.6-4.5 s (k11 <= 7.5 %, k12 and k22 <= 10 %).
+  for (const auto& [direction, snr_db, seed] :
+       {std::tuple{45.0, 20.0, 6u}, {0.0, std::numeric_limits<double>::infinity(), 1u}}) {
+    const Case c = run(m::ProfileKind::sigmoid, direction, snr_db, seed);
+    BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
+    BOOST_TEST_MESSAGE("sigmoid, " << direction << " deg, " << snr_db << " dB, seed " << seed
+                                   << " (roughness " << c.tfa.modes.track_roughness
+                                   << "):" << report(c));
+    BOOST_CHECK_GE(k_valid_share(c, 2.6, 4.5), 0.9);
+    BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 7.5);
+    BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 10.0);
+    BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
   }
 }
 
