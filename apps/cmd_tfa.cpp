@@ -250,6 +250,7 @@ void run(TfaCommandOptions cli) {
                            {"max_mode_to_data_db", mo.max_mode_to_data_db},
                            {"min_mode_separation", mo.min_mode_separation},
                            {"shape_weight", r.modes.shape_weight},
+                           {"shape_phase_factor", mo.shape_phase_factor},
                            {"track_roughness", r.modes.track_roughness},
                            {"shape_weight_from_data", mo.shape_weight < 0.0},
                            {"track_roughness_from_data", mo.track_roughness < 0.0},
@@ -448,6 +449,11 @@ void add_tfa_command(CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--shape-weight", o.modes.shape_weight,
                   "modal: weight of the penalty on mode-shape changes (< 0: chosen from the data)")
+      ->capture_default_str();
+  sub->add_option("--shape-phase-factor", o.modes.shape_phase_factor,
+                  "modal: penalty on changes of the phases between joints within a mode shape, "
+                  "relative to that on the amplitude ratios (> 0; e.g. 10 for a stiffness ellipse "
+                  "that turns: docs/tfa_modal.md, \"Phase factor of the shape penalty\")")
       ->capture_default_str();
   sub->add_flag("--no-shape-refit", cli->no_shape_refit,
                 "modal: do not refit smoother tracks with varying mode shapes when the "

@@ -57,6 +57,8 @@ void check_options(const DampedModesOptions& o) {
   if (!(o.min_mode_separation >= 0.0 && o.min_mode_separation < 1.0))
     fail("min_mode_separation", "must be in [0, 1)");
   if (o.max_iterations < 1) fail("max_iterations", "must be at least 1");
+  if (!(o.shape_phase_factor > 0.0 && std::isfinite(o.shape_phase_factor)))
+    fail("shape_phase_factor (--shape-phase-factor)", "must be positive and finite");
   if (!std::isfinite(o.decay_tie))
     fail("decay_tie (--decay-tie)", "must be finite (relative SD; 0: no tie)");
   if (!std::isfinite(o.frequency_tie))
@@ -161,7 +163,7 @@ class VpProblem {
             const Eigen::MatrixXd& functions, std::vector<LinearTerm> terms,
             std::vector<std::pair<int, int>> penalized_pairs, double shape_weight,
             const Eigen::MatrixXd& prior_rows, TrackTies ties, int real_terms, bool offsets,
-            int second_order_mode = -1)
+            int second_order_mode = -1, double phase_factor = 1.0)
       : p_(p),
         modes_(modes),
         ig_(phase_integrals),
@@ -169,6 +171,7 @@ class VpProblem {
         terms_(std::move(terms)),
         pairs_(std::move(penalized_pairs)),
         sqrt_weight_(std::sqrt(shape_weight)),
+        sqrt_phase_(std::sqrt(phase_factor)),
         prior_(prior_rows),
         ties_(std::move(ties)),
         real_(real_terms),
@@ -254,10 +257,13 @@ class VpProblem {
         }
       }
     a_penalty.setZero(penalty_rows(), linear());
+    // Re (part 0) and Im (part 1) of the coefficients' first differences; Im weighted by the
+    // phase factor (the shape design's directions are turned so that Im is the phase part).
     for (size_t q = 0; q < pairs_.size(); ++q)
       for (int part = 0; part < 2; ++part) {
-        a_penalty(2 * q + part, 2 * pairs_[q].first + part) = -1.0;
-        a_penalty(2 * q + part, 2 * pairs_[q].second + part) = 1.0;
+        const double scale = part == 0 ? 1.0 : sqrt_phase_;
+        a_penalty(2 * q + part, 2 * pairs_[q].first + part) = -scale;
+        a_penalty(2 * q + part, 2 * pairs_[q].second + part) = scale;
       }
   }
 
@@ -382,6 +388,7 @@ class VpProblem {
   std::vector<LinearTerm> terms_;
   std::vector<std::pair<int, int>> pairs_;  // linear terms whose difference is penalized
   double sqrt_weight_;
+  double sqrt_phase_;  // sqrt of the phase factor of the shape penalty (design())
   Eigen::MatrixXd prior_;  // (R x 2 n M) roughness prior rows on the track coefficients
   TrackTies ties_;
   int real_;  // R real terms
@@ -1040,6 +1047,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     std::vector<LinearTerm> terms;
     std::vector<std::pair<int, int>> pairs;
     double weight = 0.0;
+    double phase_factor = 1.0;  // the penalty on the shapes' phase part, relative to weight
   };
   Design design{constant, terms, {}, 0.0};
   std::unique_ptr<VpProblem> stage1;
@@ -1078,7 +1086,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
                            const Eigen::VectorXd& start, auto&& accept, bool restart = false) {
     auto problem = std::make_unique<VpProblem>(
         p, modes, integrals, design.functions, design.terms, design.pairs, design.weight,
-        prior_rows(track, modes, roughness), candidate_ties, real, options.offsets, so_mode);
+        prior_rows(track, modes, roughness), candidate_ties, real, options.offsets, so_mode,
+        design.phase_factor);
     Eigen::VectorXd candidate = start;
     StageOutcome o;
     // Merged modes (`merged`) are refused once a fit has been taken (something to fall back on).
@@ -1154,7 +1163,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // GCV's shape weight for design `d` at the tracks `at`.
   auto gcv_weight = [&](const Design& d, const Eigen::VectorXd& at, double roughness) {
     const VpProblem probe(p, modes, integrals, d.functions, d.terms, d.pairs, 1.0,
-                          prior_rows(track, modes, roughness), ties, real, options.offsets, so_mode);
+                          prior_rows(track, modes, roughness), ties, real, options.offsets, so_mode,
+                          d.phase_factor);
     return choose_shape_weight(probe, at, p);
   };
   auto shape_design = [&](const VpProblem& fitted, const Eigen::VectorXd& at, double roughness) {
@@ -1169,7 +1179,16 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       Eigen::VectorXcd u(c);
       for (int k = 0; k < c; ++k) u(k) = Complex(beta(2 * (j * c + k)), beta(2 * (j * c + k) + 1));
       if (!(u.norm() > 0.0)) u = Eigen::VectorXcd::Unit(c, 0);
-      const Eigen::MatrixXcd basis = complete_basis(u);
+      Eigen::MatrixXcd basis = complete_basis(u);
+      // Each varying direction turned so that a real coefficient changes the shape in phase
+      // with u (amplitude ratios: a real rotation of a real shape) and an imaginary one changes
+      // the phases between joints: the phase factor penalizes the latter apart. psi makes u
+      // most nearly real, u ~ e^{i psi} r (0.5 arg sum u_k^2); likewise for the direction.
+      const double psi = 0.5 * std::arg(u.cwiseProduct(u).sum());
+      for (int b = 1; b < c; ++b) {
+        const double own = 0.5 * std::arg(basis.col(b).cwiseProduct(basis.col(b)).sum());
+        basis.col(b) *= std::polar(1.0, psi - own);
+      }
       d.terms.push_back({j, basis.col(0), 0});
       for (int b = 1; b < c; ++b)
         for (int q = 0; q < shape.size(); ++q) {
@@ -1179,6 +1198,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
           d.terms.push_back({j, basis.col(b), 1 + q});
         }
     }
+    d.phase_factor = options.shape_phase_factor;
     d.weight = options.shape_weight >= 0.0 ? options.shape_weight : gcv_weight(d, at, roughness);
     return d;
   };
@@ -1186,7 +1206,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   auto fit_design = [&](const Design& d, double roughness, std::unique_ptr<VpProblem>& into) {
     auto problem = std::make_unique<VpProblem>(p, modes, integrals, d.functions, d.terms, d.pairs,
                                                d.weight, prior_rows(track, modes, roughness), ties,
-                                               real, options.offsets, so_mode);
+                                               real, options.offsets, so_mode, d.phase_factor);
     Eigen::VectorXd candidate = theta;
     const StageOutcome o = solve(*problem, candidate, options.max_iterations);
     result.iterations += o.iterations;

@@ -63,6 +63,10 @@ struct DampedModesOptions {
                                         ///< units, dimensionless); < 0: chosen by GCV, and the
                                         ///< varying shapes kept only when their BIC beats the
                                         ///< constant shapes'
+  double shape_phase_factor = 1.0;      ///< the shape penalty on changes of the phases between
+                                        ///< joints, relative to that on the amplitude ratios
+                                        ///< (> 0, dimensionless; 1: alike; docs/tfa_modal.md,
+                                        ///< "Phase factor of the shape penalty")
   double track_roughness = -1.0;        ///< prior SD of second differences of the omega (rad/s)
                                         ///< and alpha (1/s) spline coefficients; < 0: from the
                                         ///< data over 0.003 .. 3 (continuation smooth -> rough),

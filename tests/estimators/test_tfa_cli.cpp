@@ -118,7 +118,7 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   }
   for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "frequency_tie",
                           "frequency_tie_from_data", "shape_weight", "real_terms",
-                          "real_terms_from_data", "offsets", "shape_refit"}) {
+                          "real_terms_from_data", "offsets", "shape_refit", "shape_phase_factor"}) {
     BOOST_CHECK_MESSAGE(j["options"].contains(key), key);
   }
   // The noise-free constant-K trial needs no rough tracks: the shape refit is not taken.

@@ -383,6 +383,33 @@ BOOST_AUTO_TEST_CASE(a_rotating_stiffness_ellipse_is_followed_by_the_mode_shapes
   }
 }
 
+BOOST_AUTO_TEST_CASE(a_phase_factor_keeps_a_turning_ellipse_in_the_amplitude_ratios) {
+  // `rotating` at 45 degrees, 20 dB, seed 1: with the default options the early frames are
+  // vouched for with the mode shapes' axis ~20 degrees off and k12 misses issue 7's 25 % by a hair
+  // (25.3 % over 2.6-4.5 s); the shapes' phases between joints (none in the truth, C = 0.01 K)
+  // trade with the frequency tracks. With changes of those phases penalized 10 times the
+  // amplitude ratios' (--shape-phase-factor 10) k12 is 14.6 % and k11, k22 stay within 10 %.
+  const std::string specs = std::string(STIFFID_SOURCE_DIR) + "/models/specs/";
+  m::TrialSpec spec = m::read_trial_spec(specs + "piovesan_posture_rotating.json");
+  spec.perturbations.pulses.at(0).random_octant = false;
+  spec.perturbations.pulses.at(0).direction_rad = M_PI / 4.0;
+  est::TfaOptions o = default_options();
+  o.modes.shape_phase_factor = 10.0;
+  const Case c = run_spec(spec, 20.0, 1, o);
+  BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
+  BOOST_TEST_MESSAGE("rotating, 45 deg, seed 1, phase factor 10:" << report(c));
+  BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 10.0);
+  BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
+  BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 25.0);
+  BOOST_CHECK_GE(k_valid_share(c, 2.6, 4.5), 0.9);
+  Case plain = c;
+  plain.tfa = est::identify_tfa(c.sim.trial, default_options());
+  BOOST_REQUIRE_MESSAGE(plain.tfa.status.ok, plain.tfa.status.message);
+  BOOST_TEST_MESSAGE("  phase factor 1 (default):" << report(plain));
+  BOOST_CHECK_GT(percent_rms_error(plain, false, 0, 1, 2.6, 4.5),
+                 percent_rms_error(c, false, 0, 1, 2.6, 4.5));
+}
+
 BOOST_AUTO_TEST_CASE(a_refit_whose_modes_come_within_the_shape_bandwidth_is_not_taken) {
   // A reaching movement (piovesan_impulse_trial: reach, sigmoid K, 45 degrees; 20 dB, seed 1),
   // the deviations from the unperturbed reach (the simulator's reference, as --baseline). The
