@@ -399,6 +399,24 @@ def cost(problem, theta):
     return 0.5 * float(r @ r)
 
 
+def effective_parameters(data, prior):
+    """tr(N^+ D), N = D + Q, as stiffid's estimators/effective_parameters.cpp: N scaled to unit
+    diagonal (parameters nobody sees left out), eigenvalues below 1e-10 of the largest counted
+    as zero. (stiffid takes an LDLT when its pivots allow; the eigen form gives the same trace
+    there.)"""
+    diagonal = np.diag(data) + np.diag(prior)
+    kept = diagonal > 0
+    if not kept.any():
+        return 0.0
+    scale = 1.0 / np.sqrt(diagonal[kept])
+    d = data[np.ix_(kept, kept)] * scale[:, None] * scale[None, :]
+    q = prior[np.ix_(kept, kept)] * scale[:, None] * scale[None, :]
+    values, vectors = np.linalg.eigh(d + q)
+    use = values > 1e-10 * values.max()
+    v = vectors[:, use]
+    return float(np.sum(np.clip(1.0 - np.einsum("ij,ij->j", v, q @ v) / values[use], 0.0, 1.0)))
+
+
 def fit_size(problem, theta, with_dof):
     if not problem.evaluate(theta):
         return None
@@ -407,8 +425,8 @@ def fit_size(problem, theta, with_dof):
     if with_dof:
         j = problem.jacobian(theta)
         jd = j[:problem.rd]
-        dof = (np.trace(scipy.linalg.solve(j.T @ j, jd.T @ jd, assume_a="sym"))
-               + linear_effective(problem, theta))
+        jp = j[problem.rd:]
+        dof = effective_parameters(jd.T @ jd, jp.T @ jp) + linear_effective(problem, theta)
     return rss, dof
 
 
@@ -434,9 +452,7 @@ def linear_effective(problem, theta):
     if e is None:
         return problem.nl
     a, r = problem.design(e)
-    ata = a.T @ a
-    return float(np.trace(np.linalg.lstsq(ata + problem.sqrt_weight ** 2 * (r.T @ r), ata,
-                                          rcond=None)[0]))
+    return effective_parameters(a.T @ a, problem.sqrt_weight ** 2 * (r.T @ r))
 
 
 def prior_rows(track, modes, roughness):
