@@ -1056,11 +1056,12 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   double previous_rss = std::numeric_limits<double>::infinity();
   double previous_dof = 0.0;
   bool previous_sized = false;  // previous_dof counted (fit_size with_dof)
-  // omega_j(tau) of every mode at theta `at` (samples x modes), rad/s.
+  // The track basis at the fitted samples (N x M), and omega_j(tau) of every mode at theta `at`
+  // (samples x modes), rad/s.
+  const Eigen::MatrixXd track_values = track.values(p.tau_s);
   auto frequency_tracks = [&](const Eigen::VectorXd& at) {
-    const Eigen::MatrixXd values = track.values(p.tau_s);
-    Eigen::ArrayXXd omega(values.rows(), modes);
-    for (int j = 0; j < modes; ++j) omega.col(j) = values * at.segment((2 * j + 1) * m, m);
+    Eigen::ArrayXXd omega(track_values.rows(), modes);
+    for (int j = 0; j < modes; ++j) omega.col(j) = track_values * at.segment((2 * j + 1) * m, m);
     return omega;
   };
   // Two modes whose frequency tracks agree within min_mode_separation of their mean at every
@@ -1095,28 +1096,31 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     auto is_merged = [&](const StageOutcome& so, const Eigen::VectorXd& at) {
       return check && so.usable && merged(at);
     };
-    // Takes the fit from the start tracks when it is usable and the kept one is not, or is
-    // merged while it is not, or (equally merged) has the higher cost: the same choice at any
-    // thread count (the continuation's on a tie).
-    auto prefer_cold = [&](const StageOutcome& from_cold, const Eigen::VectorXd& other) {
-      if (!from_cold.usable) return false;
-      if (!o.usable) return true;
-      const bool merged_kept = is_merged(o, candidate), merged_cold = is_merged(from_cold, other);
-      if (merged_kept != merged_cold) return merged_kept;
-      return from_cold.cost < o.cost;
+    bool candidate_merged = false;  // is_merged(o, candidate), once per fit
+    // Takes the fit from the start tracks (merged or not: `other_merged`) when it is usable and
+    // the kept one is not, or is merged while it is not, or (equally merged) has the higher
+    // cost: the same choice at any thread count (the continuation's on a tie).
+    auto take_cold = [&](const StageOutcome& from_cold, const Eigen::VectorXd& other) {
+      const bool other_merged = is_merged(from_cold, other);
+      const bool prefer = from_cold.usable &&
+                          (!o.usable || (candidate_merged != other_merged ? candidate_merged
+                                                                         : from_cold.cost < o.cost));
+      if (prefer) {
+        o = from_cold;
+        candidate = other;
+        candidate_merged = other_merged;
+      }
     };
     const bool other_start = start.size() == cold.size() && start != cold;
     if (!restart || !other_start) {
       o = solve(*problem, candidate, options.max_iterations);
+      candidate_merged = is_merged(o, candidate);
       // A merged fit from the continuation: the start tracks get their chance.
-      if (other_start && is_merged(o, candidate)) {
+      if (other_start && candidate_merged) {
         Eigen::VectorXd other = cold;
         const StageOutcome from_cold = solve(*problem, other, options.max_iterations);
         result.iterations += from_cold.iterations;
-        if (prefer_cold(from_cold, other)) {
-          o = from_cold;
-          candidate = other;
-        }
+        take_cold(from_cold, other);
       }
     } else {
       // Both starts, solved side by side (each with its own problem and work buffers).
@@ -1130,15 +1134,13 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
           from_cold = solve(twin, other, options.max_iterations);
       });
       result.iterations += from_cold.iterations;
-      if (prefer_cold(from_cold, other)) {
-        o = from_cold;
-        candidate = other;
-      }
+      candidate_merged = is_merged(o, candidate);
+      take_cold(from_cold, other);
     }
     result.iterations += o.iterations;
     double rss = 0.0, dof = 0.0;
     if (!o.usable || !fit_size(*problem, candidate, with_dof, rss, dof)) return false;
-    if (is_merged(o, candidate)) return false;
+    if (candidate_merged) return false;
     const double rows = problem->data_rows();
     const double variance = std::max(1.0, rss / std::max(1.0, rows - dof));
     if (stage1 && !accept(rss, dof, std::log(rows) * variance)) return false;
@@ -1394,7 +1396,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
 
   Eigen::MatrixXcd e;
   fp.oscillations(theta.data(), e);
-  const Eigen::MatrixXd values = track.values(p.tau_s);
+  const Eigen::MatrixXd& values = track_values;
   const Eigen::MatrixXd slopes = track.first_derivatives(p.tau_s);
   // Time functions and their derivatives as used by the final terms.
   Eigen::MatrixXd functions = constant, function_slopes = Eigen::MatrixXd::Zero(n, 1);
