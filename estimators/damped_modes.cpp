@@ -1114,6 +1114,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     const bool other_start = start.size() == cold.size() && start != cold;
     if (!restart || !other_start) {
       o = solve(*problem, candidate, options.max_iterations);
+      result.iterations += o.iterations;
       candidate_merged = is_merged(o, candidate);
       // A merged fit from the continuation: the start tracks get their chance.
       if (other_start && candidate_merged) {
@@ -1133,11 +1134,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
         else
           from_cold = solve(twin, other, options.max_iterations);
       });
-      result.iterations += from_cold.iterations;
+      result.iterations += o.iterations + from_cold.iterations;
       candidate_merged = is_merged(o, candidate);
       take_cold(from_cold, other);
     }
-    result.iterations += o.iterations;
     double rss = 0.0, dof = 0.0;
     if (!o.usable || !fit_size(*problem, candidate, with_dof, rss, dof)) return false;
     if (candidate_merged) return false;
