@@ -54,6 +54,15 @@ Case run(m::ProfileKind profile, double direction_deg, double snr_db, unsigned s
                   snr_db, seed);
 }
 
+// The spec models/specs/`name`.json with its impulse turned to `direction_deg` (degrees).
+m::TrialSpec spec_at(const std::string& name, double direction_deg) {
+  m::TrialSpec spec =
+      m::read_trial_spec(std::string(STIFFID_SOURCE_DIR) + "/models/specs/" + name + ".json");
+  spec.perturbations.pulses.at(0).random_octant = false;
+  spec.perturbations.pulses.at(0).direction_rad = direction_deg * M_PI / 180.0;
+  return spec;
+}
+
 // The simulator's true K (or C) at time t_s, N m/rad (N m s/rad).
 Eigen::MatrixXd truth_at(const Case& c, bool damping, double t_s) {
   const m::Truth& truth = c.sim.truth;
@@ -357,12 +366,8 @@ BOOST_AUTO_TEST_CASE(a_rotating_stiffness_ellipse_is_followed_by_the_mode_shapes
   // 90 degrees, k12 29 % at 135, seed 1); the shape refit takes it into the shapes. At 45
   // degrees, seed 2, the refit needs its second start (the start tracks) from its first
   // candidate on: from the constant-shape fit alone it was not taken (k12 72 %, k22 36 %).
-  const std::string specs = std::string(STIFFID_SOURCE_DIR) + "/models/specs/";
   for (const auto& [direction, seed] : {std::pair{90.0, 1u}, {135.0, 1u}, {45.0, 2u}}) {
-    m::TrialSpec spec = m::read_trial_spec(specs + "piovesan_posture_rotating.json");
-    spec.perturbations.pulses.at(0).random_octant = false;
-    spec.perturbations.pulses.at(0).direction_rad = direction * M_PI / 180.0;
-    Case c = run_spec(spec, 20.0, seed);
+    Case c = run_spec(spec_at("piovesan_posture_rotating", direction), 20.0, seed);
     BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
     BOOST_TEST_MESSAGE("rotating, " << direction << " deg, seed " << seed << " (roughness "
                                     << c.tfa.modes.track_roughness << ", shape weight "
@@ -389,13 +394,9 @@ BOOST_AUTO_TEST_CASE(a_phase_factor_keeps_a_turning_ellipse_in_the_amplitude_rat
   // (25.3 % over 2.6-4.5 s); the shapes' phases between joints (none in the truth, C = 0.01 K)
   // trade with the frequency tracks. With changes of those phases penalized 10 times the
   // amplitude ratios' (--shape-phase-factor 10) k12 is 14.6 % and k11, k22 stay within 10 %.
-  const std::string specs = std::string(STIFFID_SOURCE_DIR) + "/models/specs/";
-  m::TrialSpec spec = m::read_trial_spec(specs + "piovesan_posture_rotating.json");
-  spec.perturbations.pulses.at(0).random_octant = false;
-  spec.perturbations.pulses.at(0).direction_rad = M_PI / 4.0;
   est::TfaOptions o = default_options();
   o.modes.shape_phase_factor = 10.0;
-  const Case c = run_spec(spec, 20.0, 1, o);
+  const Case c = run_spec(spec_at("piovesan_posture_rotating", 45.0), 20.0, 1, o);
   BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
   BOOST_TEST_MESSAGE("rotating, 45 deg, seed 1, phase factor 10:" << report(c));
   BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 10.0);
@@ -450,11 +451,7 @@ BOOST_AUTO_TEST_CASE(stiffness_of_one_joint_rising_while_its_mode_sinks_into_the
   // the shoulder mode alone (the lost mode's column its M^1/2-orthogonal complement). Issue 7's
   // targets over 2.6-4.5 s, k11, k22 <= 10 %, k12 <= 25 %, are met: k12 21.6 % (60.1 % when the
   // lost mode's extrapolated shape entered P).
-  const std::string specs = std::string(STIFFID_SOURCE_DIR) + "/models/specs/";
-  m::TrialSpec spec = m::read_trial_spec(specs + "piovesan_posture_k22_only.json");
-  spec.perturbations.pulses.at(0).random_octant = false;
-  spec.perturbations.pulses.at(0).direction_rad = M_PI / 2.0;
-  const Case c = run_spec(spec, 20.0, 2);
+  const Case c = run_spec(spec_at("piovesan_posture_k22_only", 90.0), 20.0, 2);
   BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
   BOOST_TEST_MESSAGE("k22 only, 90 deg, seed 2 (K_valid " << k_valid_share(c, 2.6, 4.5)
                                                           << "):" << report(c));
