@@ -554,10 +554,16 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     # The linear design of the candidates: constant shapes (stage 1) or slowly varying ones.
     design = dict(functions=constant, terms=terms, pairs=[], weight=0.0)
 
+    track_values = track.values(p["tau_s"])
+
+    def frequency_tracks(at):
+        """omega_j(tau) of every mode at theta `at` (samples x modes), rad/s."""
+        return track_values @ at[:2 * modes * m].reshape(modes, 2, m)[:, 1, :].T
+
     def merged(at):
         """Two modes whose frequency tracks agree within min_mode_separation everywhere: one
         mode counted twice (damped_modes.cpp)."""
-        omega = track.values(p["tau_s"]) @ at[:2 * modes * m].reshape(modes, 2, m)[:, 1, :].T
+        omega = frequency_tracks(at)
         return any(np.max(np.abs(omega[:, j] - omega[:, k])
                           / (0.5 * (np.abs(omega[:, j]) + np.abs(omega[:, k]))))
                    < o["min_mode_separation"]
@@ -721,8 +727,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                 if usable:
                     fit.update(problem=again, theta=theta2, converged=conv)
                     design["weight"] = w
-            omega = track.values(p["tau_s"]) @ fit["theta"][:2 * modes * m].reshape(
-                modes, 2, m)[:, 1, :].T
+            omega = frequency_tracks(fit["theta"])
             min_gap = 2.0 * np.pi / (4.0 * o["shape_knot_spacing_s"])
             too_close = any(np.ptp(np.sign(omega[:, j] - omega[:, k])) > 1
                             or np.min(np.abs(omega[:, j] - omega[:, k])) < min_gap
@@ -748,7 +753,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     res["residual_rms_whitened"] = math.sqrt((r_data @ r_data) / rd)
     covariance = max(1.0, chi2) * np.linalg.pinv(jac.T @ jac)
 
-    values, slopes = track.values(p["tau_s"]), track.first_derivatives(p["tau_s"])
+    values, slopes = track_values, track.first_derivatives(p["tau_s"])
     functions, function_slopes = final.functions, np.zeros_like(final.functions)
     if shape is not None:
         function_slopes = np.hstack([np.zeros((n, 1)), shape.first_derivatives(p["tau_s"])])
