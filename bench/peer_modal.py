@@ -582,20 +582,21 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
         def is_merged(ok, at):
             return check and ok and merged(at)
 
+        candidate_merged = is_merged(usable, candidate)
         other_start = start.size == cold.size and not np.array_equal(start, cold)
-        if other_start and (restart or is_merged(usable, candidate)):
+        if other_start and (restart or candidate_merged):
             other, usable2, conv2, nfev2 = solve(problem, cold, o["max_iterations"])
             res["iterations"] += nfev2
+            other_merged = is_merged(usable2, other)
             # The start tracks' fit replaces a fit that is not usable, or merged while it is not,
             # or (equally merged) of higher cost.
             if usable2 and (not usable
-                            or (is_merged(usable, candidate) != is_merged(usable2, other)
-                                and is_merged(usable, candidate))
-                            or (is_merged(usable, candidate) == is_merged(usable2, other)
-                                and cost(problem, other) < cost(problem, candidate))):
+                            or (candidate_merged if candidate_merged != other_merged
+                                else cost(problem, other) < cost(problem, candidate))):
                 candidate, usable, conv = other, usable2, conv2
+                candidate_merged = other_merged
         size = fit_size(problem, candidate, with_dof) if usable else None
-        if size is None or is_merged(usable, candidate):
+        if size is None or candidate_merged:
             return False
         rss, dof = size
         rows = problem.rd
