@@ -254,6 +254,7 @@ void run(TfaCommandOptions cli) {
                            {"track_roughness", r.modes.track_roughness},
                            {"shape_weight_from_data", mo.shape_weight < 0.0},
                            {"track_roughness_from_data", mo.track_roughness < 0.0},
+                           {"local_roughness_dof", mo.local_roughness_dof},
                            {"decay_tie", r.modes.decay_tie},
                            {"decay_tie_from_data", mo.decay_tie < 0.0},
                            {"frequency_tie", r.modes.frequency_tie},
@@ -266,6 +267,12 @@ void run(TfaCommandOptions cli) {
                            {"second_order", r.modes.second_order_mode >= 0},
                            {"shape_refit", r.modes.shape_refit},
                            {"mapping", estimators::to_string(o.modal_parameters.mapping)}});
+    // The roughness at each knot when it varies along the record (null: one roughness).
+    out["track_roughness_local"] =
+        r.modes.roughness_sd.size() == 0
+            ? nlohmann::json(nullptr)
+            : nlohmann::json{{"t_s", series(r.modes.roughness_t_s)},
+                             {"sd", series(r.modes.roughness_sd)}};
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
     out["converged"] = r.modes.converged;
     out["iterations"] = r.modes.iterations;
@@ -416,6 +423,12 @@ void add_tfa_command(CLI::App& app) {
                   "modal: prior SD of the second differences of the frequency (rad/s) and decay "
                   "(1/s) spline coefficients (< 0: chosen from the data by the BIC rule, "
                   "docs/tfa_modal.md)")
+      ->capture_default_str();
+  sub->add_option("--local-roughness-dof", o.modes.local_roughness_dof,
+                  "modal, --track-roughness from the data: nu of the Student-t prior that lets "
+                  "the roughness vary along the record, rough only where the tracks bend (a sharp "
+                  "stiffness change); kept when its BIC is lower (0: one roughness for the whole "
+                  "record; docs/tfa_modal.md, \"Local roughness\")")
       ->capture_default_str();
   sub->add_option("--decay-tie", o.modes.decay_tie,
                   "modal: prior SD of the soft tie alpha_j(t) = rho_j alpha_1(t) of the decay "

@@ -78,7 +78,7 @@ from peer_tfa import ARM, inertia, make_trial
 # Defaults of DampedModesOptions / DeviationOptions (estimators/damped_modes.hpp, tfa_deviation.hpp).
 OPTIONS = dict(decimate_hz=200.0, skip_s=0.025, noise_window_s=1.0, knot_spacing_s=0.1,
                shape_knot_spacing_s=0.5, shape_weight=-1.0, track_roughness=-1.0,
-               decay_tie=0.0, init_window_s=0.5, anr_threshold_db=0.0,
+               local_roughness_dof=1.0, decay_tie=0.0, init_window_s=0.5, anr_threshold_db=0.0,
                max_frequency_sd_hz=0.1, max_mode_to_data_db=20.0, min_mode_separation=0.01,
                max_iterations=100, mapping="eq48")
 PRE_ONSET_S, PULSE_S = 0.2, 0.02
@@ -456,7 +456,9 @@ def linear_effective(problem, theta):
 
 
 def prior_rows(track, modes, roughness):
-    return np.kron(np.eye(2 * modes), track.second_differences() / roughness)
+    """Second differences of every track over the roughness: one value, or one per knot."""
+    sd = np.asarray(roughness, dtype=float).reshape(-1, 1)
+    return np.kron(np.eye(2 * modes), track.second_differences() / sd)
 
 
 def start_tracks(p, track, global_start, o, modes):
@@ -678,12 +680,55 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
             if not try_candidate(grid[g], tie, True, fit["theta"], rougher):
                 break
             res["track_roughness"] = grid[g]
+    # Local roughness (damped_modes.cpp): when the continuation went rougher than the smoothest,
+    # a Student-t prior (nu = local_roughness_dof, scale along the grid below stage 1's
+    # roughness) on each knot's vector of the 2 n tracks' second differences, fitted by EM
+    # (sd_i^2 = (nu s^2 + |D_i theta|^2) / (nu + 2 n), then the fit, until no sd_i moves by 5 %,
+    # at most 10 sweeps); each scale taken while rss + price dof stays below the current fit's.
+    uniform_roughness = res["track_roughness"]
+    roughness_sd = uniform_roughness
+    res["roughness_sd"] = None
+    nu = o.get("local_roughness_dof", 1.0)
+    if nu > 0 and o["track_roughness"] < 0 and uniform_roughness > grid[0]:
+        d2 = track.second_differences()
+
+        def em_sd(at, scale):
+            bends = d2 @ at[:2 * modes * m].reshape(2 * modes, m).T  # (knots x tracks)
+            return np.sqrt((nu * scale ** 2 + np.sum(bends ** 2, axis=1)) / (nu + 2 * modes))
+
+        for scale in [g for g in grid if g < uniform_roughness]:
+            candidate = fit["theta"]
+            sd = em_sd(candidate, scale)
+            for _ in range(10):
+                problem = VpProblem(p, modes, ig, design["functions"], design["terms"],
+                                    design["pairs"], design["weight"], prior_rows(track, modes, sd),
+                                    tie, so[0])
+                candidate, usable, conv, nfev = solve(problem, candidate, o["max_iterations"])
+                res["iterations"] += nfev
+                if not usable:
+                    break
+                following = em_sd(candidate, scale)
+                if np.max(np.abs(np.log(following / sd))) < math.log(1.05):
+                    break
+                sd = following
+            size = fit_size(problem, candidate, True) if usable else None
+            if size is None or merged(candidate):
+                break
+            rss, dof = size
+            price = math.log(problem.rd) * max(1.0, rss / max(1.0, problem.rd - dof))
+            if not rss + price * dof < fit["rss"] + price * fit["dof"]:
+                break
+            fit.update(problem=problem, theta=candidate, converged=conv, rss=rss, dof=dof)
+            roughness_sd, res["track_roughness"] = sd, scale
+        if res["track_roughness"] != uniform_roughness:
+            res["roughness_sd"] = roughness_sd
+            res["roughness_t_s"] = p["t_s"][0] + track.h * np.arange(len(roughness_sd))
     theta, converged, final = fit["theta"], fit["converged"], fit["problem"]
 
     if shapes:
-        d = shape_design(final, theta, res["track_roughness"])
+        d = shape_design(final, theta, roughness_sd)
         stage2 = VpProblem(p, modes, ig, d["functions"], d["terms"], d["pairs"], d["weight"],
-                           prior_rows(track, modes, res["track_roughness"]), tie, so[0])
+                           prior_rows(track, modes, roughness_sd), tie, so[0])
         theta2, usable, conv, nfev = solve(stage2, theta, o["max_iterations"])
         res["iterations"] += nfev
         # With the weight from the data, kept only when its BIC beats the constant shapes'
@@ -700,7 +745,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     res["shape_refit"] = False
     if (o.get("shape_refit", True) and shape is not None and o["shape_weight"] < 0
             and len(grid) > 1 and tie.sd == 0 and smoothest is not None
-            and res["track_roughness"] > grid[0]):
+            and uniform_roughness > grid[0]):
         base = VpProblem(p, modes, ig, constant, terms, [], 0.0, prior_rows(track, modes, grid[0]),
                          DecayTie(), so[0])
         design.update(shape_design(base, smoothest, grid[0]))
@@ -708,7 +753,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
         fit.update(problem=None, rss=np.inf, dof=0.0)
         refit_roughness = None
         for g, roughness in enumerate(grid):
-            if roughness >= res["track_roughness"]:
+            if roughness >= uniform_roughness:
                 break
             if not try_candidate(roughness, tie, True, smoothest if g == 0 else fit["theta"],
                                  rougher, True):
@@ -738,6 +783,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
             final, theta, converged = fit["problem"], fit["theta"], fit["converged"]
             res["track_roughness"], res["shape_weight"] = refit_roughness, design["weight"]
             res["shape_refit"] = True
+            res["roughness_sd"] = None
         else:
             final, theta, converged = first
 
@@ -976,10 +1022,14 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
                        "shape_weight": fit["shape_weight"], "track_roughness": fit["track_roughness"],
                        "shape_weight_from_data": OPTIONS["shape_weight"] < 0,
                        "track_roughness_from_data": OPTIONS["track_roughness"] < 0,
+                       "local_roughness_dof": OPTIONS["local_roughness_dof"],
                        "decay_tie": fit["decay_tie"],
                        "decay_tie_from_data": OPTIONS["decay_tie"] < 0,
                        "shape_refit": bool(fit["shape_refit"]),
                        "mapping": OPTIONS["mapping"]},
+           "track_roughness_local": (None if fit["roughness_sd"] is None else
+                                     {"t_s": series(fit["roughness_t_s"]),
+                                      "sd": series(fit["roughness_sd"])}),
            "residual_rms_whitened": fit["residual_rms_whitened"], "converged": bool(fit["converged"]),
            "noise_covariance_rad2": fit["noise_cov"].tolist(),
            "onset_s": onset_s, "free_start_s": free_start_s,

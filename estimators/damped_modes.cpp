@@ -59,6 +59,9 @@ void check_options(const DampedModesOptions& o) {
   if (o.max_iterations < 1) fail("max_iterations", "must be at least 1");
   if (!(o.shape_phase_factor > 0.0 && std::isfinite(o.shape_phase_factor)))
     fail("shape_phase_factor (--shape-phase-factor)", "must be positive and finite");
+  if (!(o.local_roughness_dof >= 0.0 && std::isfinite(o.local_roughness_dof)))
+    fail("local_roughness_dof (--local-roughness-dof)",
+         "must be non-negative and finite (0: one roughness for the whole record)");
   if (!std::isfinite(o.decay_tie))
     fail("decay_tie (--decay-tie)", "must be finite (relative SD; 0: no tie)");
   if (!std::isfinite(o.frequency_tie))
@@ -540,13 +543,19 @@ Eigen::VectorXd start_tracks(const Prepared& p, const UniformCubicBspline& track
   return theta;
 }
 
-// Roughness prior rows (2 n (M - 2) x P): second differences of every track / roughness.
-Eigen::MatrixXd prior_rows(const UniformCubicBspline& track, int modes, double roughness) {
-  const Eigen::MatrixXd d2 = track.second_differences() / roughness;
+// Roughness prior rows (2 n (M - 2) x P): second differences of every track, row i divided by
+// the roughness at its knot, sd(i) (rad/s and 1/s).
+Eigen::MatrixXd prior_rows(const UniformCubicBspline& track, int modes, const Eigen::VectorXd& sd) {
+  const Eigen::MatrixXd d2 = sd.cwiseInverse().asDiagonal() * track.second_differences();
   const int m = track.size();
   Eigen::MatrixXd rows = Eigen::MatrixXd::Zero(2 * modes * d2.rows(), 2 * modes * m);
   for (int b = 0; b < 2 * modes; ++b) rows.block(b * d2.rows(), b * m, d2.rows(), m) = d2;
   return rows;
+}
+
+// The same with one roughness for the whole record.
+Eigen::MatrixXd prior_rows(const UniformCubicBspline& track, int modes, double roughness) {
+  return prior_rows(track, modes, Eigen::VectorXd::Constant(track.size() - 2, roughness));
 }
 
 // The linear parameters' design at theta: data rows `a` and shape-penalty rows `r` (without the
@@ -987,6 +996,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   if (options.design == ModalDesign::sliding) return fit_sliding(p, options, pencils, real, result);
   const int m = track.size();
   const Eigen::MatrixXd integrals = track.integrals(p.tau_s);
+  auto uniform = [&](double roughness) { return Eigen::VectorXd::Constant(m - 2, roughness); };
   Eigen::VectorXd theta(2 * modes * m + real);
   theta.head(2 * modes * m) = start_tracks(p, track, pencils, options);
   theta.tail(real) = pencils.global.real_rate_per_s;
@@ -1163,13 +1173,15 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   const bool shapes =
       options.shape_knot_spacing_s > 0.0 && c > 1 && length_s > options.shape_knot_spacing_s;
   // GCV's shape weight for design `d` at the tracks `at`.
-  auto gcv_weight = [&](const Design& d, const Eigen::VectorXd& at, double roughness) {
+  auto gcv_weight = [&](const Design& d, const Eigen::VectorXd& at,
+                        const Eigen::VectorXd& roughness) {
     const VpProblem probe(p, modes, integrals, d.functions, d.terms, d.pairs, 1.0,
                           prior_rows(track, modes, roughness), ties, real, options.offsets, so_mode,
                           d.phase_factor);
     return choose_shape_weight(probe, at, p);
   };
-  auto shape_design = [&](const VpProblem& fitted, const Eigen::VectorXd& at, double roughness) {
+  auto shape_design = [&](const VpProblem& fitted, const Eigen::VectorXd& at,
+                          const Eigen::VectorXd& roughness) {
     Eigen::VectorXd beta(fitted.linear());
     std::vector<double> scratch(fitted.residuals());
     fitted.evaluate(at.data(), scratch.data(), nullptr, &beta);
@@ -1205,7 +1217,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     return d;
   };
   // Fits design `d` at `roughness` from theta; when usable, takes it (theta, outcome, `into`).
-  auto fit_design = [&](const Design& d, double roughness, std::unique_ptr<VpProblem>& into) {
+  auto fit_design = [&](const Design& d, const Eigen::VectorXd& roughness,
+                        std::unique_ptr<VpProblem>& into) {
     auto problem = std::make_unique<VpProblem>(p, modes, integrals, d.functions, d.terms, d.pairs,
                                                d.weight, prior_rows(track, modes, roughness), ties,
                                                real, options.offsets, so_mode, d.phase_factor);
@@ -1281,6 +1294,71 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     if (!try_candidate(grid[g], ties, true, theta, rougher)) break;
     result.track_roughness = grid[g];
   }
+  const double uniform_roughness = result.track_roughness;  // stage 1's, for the shape refit
+  Eigen::VectorXd roughness_sd = uniform(uniform_roughness);
+
+  // Local roughness: one roughness for the whole record must be as rough as the sharpest bend of
+  // any track (a stiffness change within 0.15 s), and then lets every track wobble elsewhere.
+  // When the continuation chose tracks rougher than the smoothest, each knot gets a roughness of
+  // its own: a Student-t prior (nu = local_roughness_dof, scale s) on the vector of the 2 n
+  // tracks' second differences at the knot, fitted by EM: sd_i^2 = (nu s^2 + |D_i theta|^2) /
+  // (nu + 2 n), then the fit with those SDs (from the previous fit), until no sd_i moves by more
+  // than 5 % (at most 10 sweeps). The scale runs up the grid below stage 1's roughness (each
+  // from the previous fit) while the same BIC rule, taken both ways, prefers it: rss + price dof
+  // below the current fit's (first the uniform one). The SDs are taken as given in the effective
+  // parameters (docs/tfa_modal.md, "Local roughness").
+  if (options.local_roughness_dof > 0.0 && options.track_roughness < 0.0 && stage1 &&
+      previous_sized && uniform_roughness > grid[0]) {
+    const Eigen::MatrixXd d2 = track.second_differences();
+    const double nu = options.local_roughness_dof;
+    auto em_sd = [&](const Eigen::VectorXd& at, double scale) {
+      Eigen::VectorXd sd(d2.rows());
+      for (Eigen::Index i = 0; i < d2.rows(); ++i) {
+        double squares = 0.0;
+        for (int b = 0; b < 2 * modes; ++b)
+          squares += std::pow(d2.row(i).dot(at.segment(b * m, m)), 2);
+        sd(i) = std::sqrt((nu * scale * scale + squares) / (nu + 2 * modes));
+      }
+      return sd;
+    };
+    for (std::size_t g = 0; g < grid.size() && grid[g] < uniform_roughness; ++g) {
+      Eigen::VectorXd candidate = theta;
+      Eigen::VectorXd sd = em_sd(candidate, grid[g]);
+      std::unique_ptr<VpProblem> problem;
+      StageOutcome o;
+      for (int sweep = 0; sweep < 10; ++sweep) {
+        problem = std::make_unique<VpProblem>(p, modes, integrals, design.functions, design.terms,
+                                              design.pairs, design.weight,
+                                              prior_rows(track, modes, sd), ties, real,
+                                              options.offsets, so_mode, design.phase_factor);
+        o = solve(*problem, candidate, options.max_iterations);
+        result.iterations += o.iterations;
+        if (!o.usable) break;
+        const Eigen::VectorXd next = em_sd(candidate, grid[g]);
+        const double moved = (next.array() / sd.array()).log().abs().maxCoeff();
+        if (moved < std::log(1.05)) break;
+        sd = next;
+      }
+      double rss = 0.0, dof = 0.0;
+      if (!o.usable || merged(candidate) || !fit_size(*problem, candidate, true, rss, dof)) break;
+      const double rows = problem->data_rows();
+      const double price = std::log(rows) * std::max(1.0, rss / std::max(1.0, rows - dof));
+      if (!(rss + price * dof < previous_rss + price * previous_dof)) break;
+      stage1 = std::move(problem);
+      theta = candidate;
+      outcome = o;
+      previous_rss = rss;
+      previous_dof = dof;
+      roughness_sd = sd;
+      result.track_roughness = grid[g];
+    }
+    if (result.track_roughness != uniform_roughness) {
+      result.roughness_sd = roughness_sd;
+      const Eigen::Index knots = d2.rows();
+      result.roughness_t_s =
+          p.t_s(0) + track.spacing_s() * Eigen::ArrayXd::LinSpaced(knots, 0.0, knots - 1.0);
+    }
+  }
   std::unique_ptr<VpProblem> final_problem = std::move(stage1);
 
   // Stage 2: slowly varying mode shapes, at the chosen tracks. With the weight from the data they
@@ -1288,14 +1366,14 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // below): the shapes stay put when the data do not ask them to move. GCV's weight alone can
   // let them absorb noise (10 dB trials, docs/tfa_modal.md). A weight given is the user's choice.
   if (outcome.usable && shapes) {
-    const Design d = shape_design(*final_problem, theta, result.track_roughness);
+    const Design d = shape_design(*final_problem, theta, roughness_sd);
     std::unique_ptr<VpProblem> constant_shapes = std::move(final_problem);
     const Eigen::VectorXd constant_theta = theta;
     const StageOutcome constant_outcome = outcome;
     // The constant-shape fit is the last candidate taken: its size is known when it was counted.
     std::optional<std::pair<double, double>> constant_size;
     if (previous_sized) constant_size = std::make_pair(previous_rss, previous_dof);
-    if (fit_design(d, result.track_roughness, final_problem) &&
+    if (fit_design(d, roughness_sd, final_problem) &&
         (options.shape_weight >= 0.0 ||
          lower_bic(*final_problem, theta, *constant_shapes, constant_theta, constant_size))) {
       result.shape_weight = d.weight;
@@ -1323,7 +1401,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     const VpProblem base(p, modes, integrals, constant, terms, {}, 0.0,
                          prior_rows(track, modes, grid[0]), TrackTies{}, real, options.offsets,
                          so_mode);
-    design = shape_design(base, smoothest, grid[0]);
+    design = shape_design(base, smoothest, uniform(grid[0]));
     std::unique_ptr<VpProblem> first_problem = std::move(final_problem);
     const Eigen::VectorXd first_theta = theta;
     const StageOutcome first_outcome = outcome;
@@ -1334,7 +1412,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     // Every candidate from two starts (the continuation's fit and the start tracks): the start
     // tracks were not fitted in this design, so they are a start of their own from the first
     // candidate on (stage 1 takes them from the third).
-    for (std::size_t g = 0; g < grid.size() && grid[g] < result.track_roughness; ++g) {
+    for (std::size_t g = 0; g < grid.size() && grid[g] < uniform_roughness; ++g) {
       if (!try_candidate(grid[g], ties, true, g == 0 ? smoothest : theta, rougher, true)) break;
       refit_roughness = grid[g];
     }
@@ -1357,14 +1435,16 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     };
     if (stage1) {
       Design again = design;
-      again.weight = gcv_weight(design, theta, refit_roughness);
-      if (again.weight != design.weight && fit_design(again, refit_roughness, stage1))
+      again.weight = gcv_weight(design, theta, uniform(refit_roughness));
+      if (again.weight != design.weight && fit_design(again, uniform(refit_roughness), stage1))
         design.weight = again.weight;
       take_refit = lower_bic(*stage1, theta, *first_problem, first_theta) && !too_close(theta);
     }
     if (take_refit) {
       final_problem = std::move(stage1);
       result.track_roughness = refit_roughness;
+      result.roughness_sd.resize(0);
+      result.roughness_t_s.resize(0);
       result.shape_weight = design.weight;
       result.shape_refit = true;
       result.decay_tie = result.frequency_tie = 0.0;

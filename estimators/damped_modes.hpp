@@ -72,6 +72,16 @@ struct DampedModesOptions {
                                         ///< data over 0.003 .. 3 (continuation smooth -> rough),
                                         ///< rougher only while the BIC rule accepts the extra
                                         ///< effective parameters (docs/tfa_modal.md)
+  double local_roughness_dof = 1.0;     ///< with track_roughness from the data: nu of the
+                                        ///< Student-t prior (scale from the same grid, by the
+                                        ///< same BIC rule) on the second differences of all
+                                        ///< tracks at each knot, which lets the roughness vary
+                                        ///< along the record: rough where the tracks bend
+                                        ///< (a sharp stiffness change), smooth elsewhere. Tried
+                                        ///< when the continuation chose tracks rougher than the
+                                        ///< smoothest, kept when its BIC is lower (> 0,
+                                        ///< dimensionless; 0: one roughness for the whole
+                                        ///< record; docs/tfa_modal.md, "Local roughness")
   double decay_tie = 0.0;               ///< soft tie of the decay tracks, alpha_j(t) = rho_j
                                         ///< alpha_1(t) with rho_j fitted: prior SD of the
                                         ///< difference, relative to mode j's mean decay
@@ -180,7 +190,14 @@ struct DampedModesResult {
                                     ///< kept the constant-shape fit)
   bool shape_refit = false;         ///< the shape refit replaced the constant-shape continuation's
                                     ///< result (track_roughness and shape_weight are the refit's)
-  double track_roughness = 0.0;     ///< track roughness prior SD used, rad/s and 1/s
+  double track_roughness = 0.0;     ///< track roughness prior SD used, rad/s and 1/s (with a
+                                    ///< local roughness: the Student-t prior's scale)
+  Eigen::VectorXd roughness_t_s;    ///< [K] with a local roughness: the knots at which it is
+                                    ///< given (the middle knot of each second difference), s
+                                    ///< (same clock as t_s); empty: one roughness throughout
+  Eigen::VectorXd roughness_sd;     ///< [K] with a local roughness: the prior SD of the tracks'
+                                    ///< second differences at roughness_t_s (the last EM
+                                    ///< sweep's), rad/s and 1/s
   double decay_tie = 0.0;           ///< decay-tie prior SD used (relative); 0: none
   double frequency_tie = 0.0;       ///< frequency-tie prior SD used (relative); 0: none
   double residual_rms_whitened = 0.0;  ///< RMS whitened data residual (1 = noise level)

@@ -113,19 +113,30 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
                           "eta_squared_per_s2", "K_nm_per_rad", "C_nms_per_rad", "eigenvectors",
                           "normalized_force", "options", "valid", "anr_db", "K_valid",
                           "noise_covariance_rad2", "residual_rms_whitened", "iterations",
-                          "decay_ratio", "frequency_ratio", "real_terms", "offset_rad"}) {
+                          "decay_ratio", "frequency_ratio", "real_terms", "offset_rad",
+                          "track_roughness_local"}) {
     BOOST_CHECK_MESSAGE(j.contains(key), key);
   }
   for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "frequency_tie",
                           "frequency_tie_from_data", "shape_weight", "real_terms",
-                          "real_terms_from_data", "offsets", "shape_refit", "shape_phase_factor"}) {
+                          "real_terms_from_data", "offsets", "shape_refit", "shape_phase_factor",
+                          "local_roughness_dof"}) {
     BOOST_CHECK_MESSAGE(j["options"].contains(key), key);
   }
-  // The noise-free constant-K trial needs no rough tracks: the shape refit is not taken.
+  // The noise-free constant-K trial needs no rough tracks: the shape refit is not taken, and the
+  // roughness is one for the whole record.
   BOOST_CHECK(!j["options"]["shape_refit"].get<bool>());
+  BOOST_CHECK(j["track_roughness_local"].is_null());
+  BOOST_CHECK_EQUAL(j["options"]["local_roughness_dof"].get<double>(), 1.0);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --no-shape-refit -o " +
                         scratch("no_refit.json").string()),
                     0);
+  // A negative nu of the local roughness is refused by name (exit 2), and nothing is written.
+  const fs::path bad = scratch("bad_local.json");
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --local-roughness-dof -1 -o " +
+                        bad.string()),
+                    2);
+  BOOST_CHECK(!fs::exists(bad));
   BOOST_CHECK(j["options"]["offsets"].get<bool>());
   BOOST_CHECK(j["options"]["second_order"].get<bool>());
   BOOST_CHECK(j["second_order_mode"].get<int>() >= 0);
