@@ -430,13 +430,15 @@ def fit_size(problem, theta, with_dof):
     return rss, dof
 
 
-def lower_bic(a, theta_a, b, theta_b):
-    """Fit a has a lower BIC than fit b, the residual variance unknown: N ln RSS + ln(N) dof."""
+def lower_bic(a, theta_a, b, theta_b, b_knots=0):
+    """Fit a has a lower BIC than fit b, the residual variance unknown: N ln RSS + ln(N) dof
+    (b_knots: the bent knots of b's local roughness, added to its dof)."""
     size_a, size_b = fit_size(a, theta_a, True), fit_size(b, theta_b, True)
     if size_a is None or size_b is None:
         return False
     rows = a.rd
     (rss_a, dof_a), (rss_b, dof_b) = size_a, size_b
+    dof_b += b_knots
     sane = lambda dof: np.isfinite(dof) and 0 <= dof < rows
     bic = lambda rss, dof: rows * math.log(rss) + math.log(rows) * dof
     return (sane(dof_a) and sane(dof_b) and rss_a > 0 and rss_b > 0
@@ -684,10 +686,12 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     # a Student-t prior (nu = local_roughness_dof, scale along the grid below stage 1's
     # roughness) on each knot's vector of the 2 n tracks' second differences, fitted by EM
     # (sd_i^2 = (nu s^2 + |D_i theta|^2) / (nu + 2 n), then the fit, until no sd_i moves by 5 %,
-    # at most 10 sweeps); each scale taken while rss + price dof stays below the current fit's.
+    # at most 10 sweeps); each scale taken while rss + price dof stays below the current fit's,
+    # its dof counting one more per bent knot (|D_i theta|^2 > nu s^2).
     uniform_roughness = res["track_roughness"]
     roughness_sd = uniform_roughness
     res["roughness_sd"] = None
+    local_knots = 0
     nu = o.get("local_roughness_dof", 1.0)
     if nu > 0 and o["track_roughness"] < 0 and uniform_roughness > grid[0]:
         d2 = track.second_differences()
@@ -716,8 +720,10 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                 break
             rss, dof = size
             price = math.log(problem.rd) * max(1.0, rss / max(1.0, problem.rd - dof))
-            if not rss + price * dof < fit["rss"] + price * fit["dof"]:
+            knots = int(np.count_nonzero(sd ** 2 * (nu + 2 * modes) > 2.0 * nu * scale ** 2))
+            if not rss + price * (dof + knots) < fit["rss"] + price * (fit["dof"] + local_knots):
                 break
+            local_knots = knots
             fit.update(problem=problem, theta=candidate, converged=conv, rss=rss, dof=dof)
             roughness_sd, res["track_roughness"] = sd, scale
         if res["track_roughness"] != uniform_roughness:
@@ -778,7 +784,8 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
             too_close = any(np.ptp(np.sign(omega[:, j] - omega[:, k])) > 1
                             or np.min(np.abs(omega[:, j] - omega[:, k])) < min_gap
                             for j in range(modes) for k in range(j + 1, modes))
-            take = lower_bic(fit["problem"], fit["theta"], first[0], first[1]) and not too_close
+            take = (lower_bic(fit["problem"], fit["theta"], first[0], first[1], local_knots)
+                    and not too_close)
         if take:
             final, theta, converged = fit["problem"], fit["theta"], fit["converged"]
             res["track_roughness"], res["shape_weight"] = refit_roughness, design["weight"]

@@ -1305,12 +1305,20 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // (nu + 2 n), then the fit with those SDs (from the previous fit), until no sd_i moves by more
   // than 5 % (at most 10 sweeps). The scale runs up the grid below stage 1's roughness (each
   // from the previous fit) while the same BIC rule, taken both ways, prefers it: rss + price dof
-  // below the current fit's (first the uniform one). The SDs are taken as given in the effective
-  // parameters (docs/tfa_modal.md, "Local roughness").
+  // below the current fit's (first the uniform one). Its dof: the effective parameters at the
+  // SDs, plus one per bent knot, where the bends exceed the prior's scale (|D_i theta|^2 > nu
+  // s^2: the data, not the prior, set that SD), a parameter estimated from the data. Without
+  // that count a smooth change (sigmoid K) takes a local roughness that trades its smooth bend
+  // for a few kinks (docs/tfa_modal.md, "Local roughness").
+  double local_knots = 0.0;  // bent knots of the local roughness taken
   if (options.local_roughness_dof > 0.0 && options.track_roughness < 0.0 && stage1 &&
       previous_sized && uniform_roughness > grid[0]) {
     const Eigen::MatrixXd d2 = track.second_differences();
     const double nu = options.local_roughness_dof;
+    auto bent_knots = [&](const Eigen::VectorXd& sd, double scale) {
+      return static_cast<double>(
+          (sd.array().square() * (nu + 2 * modes) > 2.0 * nu * scale * scale).count());
+    };
     auto em_sd = [&](const Eigen::VectorXd& at, double scale) {
       Eigen::VectorXd sd(d2.rows());
       for (Eigen::Index i = 0; i < d2.rows(); ++i) {
@@ -1343,7 +1351,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       if (!o.usable || merged(candidate) || !fit_size(*problem, candidate, true, rss, dof)) break;
       const double rows = problem->data_rows();
       const double price = std::log(rows) * std::max(1.0, rss / std::max(1.0, rows - dof));
-      if (!(rss + price * dof < previous_rss + price * previous_dof)) break;
+      const double knots = bent_knots(sd, grid[g]);
+      if (!(rss + price * (dof + knots) < previous_rss + price * (previous_dof + local_knots)))
+        break;
+      local_knots = knots;
       stage1 = std::move(problem);
       theta = candidate;
       outcome = o;
@@ -1438,7 +1449,13 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       again.weight = gcv_weight(design, theta, uniform(refit_roughness));
       if (again.weight != design.weight && fit_design(again, uniform(refit_roughness), stage1))
         design.weight = again.weight;
-      take_refit = lower_bic(*stage1, theta, *first_problem, first_theta) && !too_close(theta);
+      // The first fit's size, its bent knots counted when it has a local roughness.
+      std::optional<std::pair<double, double>> first_size;
+      double first_rss = 0.0, first_dof = 0.0;
+      if (local_knots > 0.0 && fit_size(*first_problem, first_theta, true, first_rss, first_dof))
+        first_size = std::make_pair(first_rss, first_dof + local_knots);
+      take_refit = lower_bic(*stage1, theta, *first_problem, first_theta, first_size) &&
+                   !too_close(theta);
     }
     if (take_refit) {
       final_problem = std::move(stage1);
