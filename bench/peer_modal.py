@@ -19,6 +19,9 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
   - variable projection with Kaufman's Jacobian, minimized by Levenberg-Marquardt, along the
     roughness continuation 0.003 .. 3 with the BIC rule, from its third candidate on each
     candidate also fitted from the start tracks and the lower cost kept;
+  - after the tie, the local roughness (continuation rougher than the smoothest): a Student-t (nu 1)
+    on each knot's second differences of all tracks, fitted by EM, its scale along the grid
+    below the continuation's roughness, taken by the BIC rule with one parameter per bent knot;
   - the decay tie (more than one mode; opt-in, --decay-tie as stiffid's, default 0 = none): a
     Gaussian prior on (c_alpha_j - rho_j c_alpha_0) /
     (sd scale_j) for every decay-spline coefficient of the modes j > 0, scale_j = mode j's mean
