@@ -706,13 +706,13 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
         for scale in [g for g in grid if g < uniform_roughness]:
             candidate = fit["theta"]
             sd = em_sd(candidate, scale)
-            for _ in range(10):
+            for sweep in range(1, 11):  # sd stays the last fit's SDs when the sweeps end
                 problem = VpProblem(p, modes, ig, design["functions"], design["terms"],
                                     design["pairs"], design["weight"], prior_rows(track, modes, sd),
                                     tie, so[0])
                 candidate, usable, conv, nfev = solve(problem, candidate, o["max_iterations"])
                 res["iterations"] += nfev
-                if not usable:
+                if not usable or sweep == 10:
                     break
                 following = em_sd(candidate, scale)
                 if np.max(np.abs(np.log(following / sd))) < math.log(1.05):

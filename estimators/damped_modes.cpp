@@ -1334,14 +1334,15 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       Eigen::VectorXd sd = em_sd(candidate, grid[g]);
       std::unique_ptr<VpProblem> problem;
       StageOutcome o;
-      for (int sweep = 0; sweep < 10; ++sweep) {
+      // sd stays the SDs of the last fit (problem) when the sweeps end.
+      for (int sweep = 1;; ++sweep) {
         problem = std::make_unique<VpProblem>(p, modes, integrals, design.functions, design.terms,
                                               design.pairs, design.weight,
                                               prior_rows(track, modes, sd), ties, real,
                                               options.offsets, so_mode, design.phase_factor);
         o = solve(*problem, candidate, options.max_iterations);
         result.iterations += o.iterations;
-        if (!o.usable) break;
+        if (!o.usable || sweep == 10) break;
         const Eigen::VectorXd next = em_sd(candidate, grid[g]);
         const double moved = (next.array() / sd.array()).log().abs().maxCoeff();
         if (moved < std::log(1.05)) break;
