@@ -1090,9 +1090,29 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       }
     return false;
   };
+  // Takes the fit `o` at `candidate` of `problem` (stage1, theta, outcome, previous_*) when it is
+  // usable, not merged (`merged_fit`, the caller's test) and, once a fit has been taken,
+  // `accept` says so for its RSS, effective parameters and the BIC price ln(N) s^2, s^2 = RSS /
+  // (N - dof), never below 1; false otherwise.
+  auto take_fit = [&](std::unique_ptr<VpProblem>& problem, const Eigen::VectorXd& candidate,
+                      const StageOutcome& o, bool with_dof, bool merged_fit, auto&& accept) {
+    double rss = 0.0, dof = 0.0;
+    if (!o.usable || !fit_size(*problem, candidate, with_dof, rss, dof)) return false;
+    if (merged_fit) return false;
+    const double rows = problem->data_rows();
+    const double variance = std::max(1.0, rss / std::max(1.0, rows - dof));
+    if (stage1 && !accept(rss, dof, std::log(rows) * variance)) return false;
+    stage1 = std::move(problem);
+    outcome = o;
+    theta = candidate;
+    previous_rss = rss;
+    previous_dof = dof;
+    previous_sized = with_dof;
+    return true;
+  };
   // Fits one candidate from `start` (with `restart`, also from the start tracks: the lower cost
-  // is kept); taken (stage1, theta, outcome, previous_*) when `accept` says so for its RSS and
-  // effective parameters; false when it is not usable, merged or not taken.
+  // is kept); taken (take_fit) when `accept` says so for its RSS and effective parameters; false
+  // when it is not usable, merged or not taken.
   auto try_candidate = [&](double roughness, const TrackTies& candidate_ties, bool with_dof,
                            const Eigen::VectorXd& start, auto&& accept, bool restart = false) {
     auto problem = std::make_unique<VpProblem>(
@@ -1148,19 +1168,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       candidate_merged = is_merged(o, candidate);
       take_cold(from_cold, other);
     }
-    double rss = 0.0, dof = 0.0;
-    if (!o.usable || !fit_size(*problem, candidate, with_dof, rss, dof)) return false;
-    if (candidate_merged) return false;
-    const double rows = problem->data_rows();
-    const double variance = std::max(1.0, rss / std::max(1.0, rows - dof));
-    if (stage1 && !accept(rss, dof, std::log(rows) * variance)) return false;
-    stage1 = std::move(problem);
-    outcome = o;
-    theta = candidate;
-    previous_rss = rss;
-    previous_dof = dof;
-    previous_sized = with_dof;
-    return true;
+    return take_fit(problem, candidate, o, with_dof, candidate_merged, accept);
   };
   auto rougher = [&](double rss, double dof, double price) {
     return previous_rss - rss > price * (dof - previous_dof);
@@ -1348,19 +1356,12 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
         if (moved < std::log(1.05)) break;
         sd = next;
       }
-      double rss = 0.0, dof = 0.0;
-      if (!o.usable || merged(candidate) || !fit_size(*problem, candidate, true, rss, dof)) break;
-      const double rows = problem->data_rows();
-      const double price = std::log(rows) * std::max(1.0, rss / std::max(1.0, rows - dof));
       const double knots = bent_knots(sd, grid[g]);
-      if (!(rss + price * (dof + knots) < previous_rss + price * (previous_dof + local_knots)))
-        break;
+      auto lower = [&](double rss, double dof, double price) {
+        return rss + price * (dof + knots) < previous_rss + price * (previous_dof + local_knots);
+      };
+      if (!take_fit(problem, candidate, o, true, o.usable && merged(candidate), lower)) break;
       local_knots = knots;
-      stage1 = std::move(problem);
-      theta = candidate;
-      outcome = o;
-      previous_rss = rss;
-      previous_dof = dof;
       roughness_sd = sd;
       result.track_roughness = grid[g];
     }

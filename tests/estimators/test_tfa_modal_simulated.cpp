@@ -112,6 +112,19 @@ std::string report(const Case& c) {
   return line.str();
 }
 
+// Issue 7's 20 dB posture targets but c12's: over 2.6-3.175 s k11 <= 5 %, k12 <= 10 %, k22 <= 5
+// %; over 2.6-4.5 s k11 <= 7.5 %, k12 <= 10 %, k22 <= 10 %, c11 <= 30 %, c22 <= 35 %.
+void check_posture_targets_but_c12(const Case& c) {
+  BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 3.175), 5.0);
+  BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 3.175), 10.0);
+  BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 3.175), 5.0);
+  BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 7.5);
+  BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 10.0);
+  BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
+  BOOST_CHECK_LE(percent_rms_error(c, true, 0, 0, 2.6, 4.5), 30.0);
+  BOOST_CHECK_LE(percent_rms_error(c, true, 1, 1, 2.6, 4.5), 35.0);
+}
+
 }  // namespace
 
 BOOST_AUTO_TEST_CASE(constant_and_sigmoid_stiffness_at_20_db_three_noise_seeds) {
@@ -128,14 +141,7 @@ BOOST_AUTO_TEST_CASE(constant_and_sigmoid_stiffness_at_20_db_three_noise_seeds) 
         BOOST_TEST_MESSAGE((profile == m::ProfileKind::constant ? "constant" : "sigmoid")
                            << ' ' << direction << " deg, seed " << seed << " (roughness "
                            << c.tfa.modes.track_roughness << "):" << report(c));
-        BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 3.175), 5.0);
-        BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 3.175), 5.0);
-        BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 7.5);
-        BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
-        BOOST_CHECK_LE(percent_rms_error(c, true, 0, 0, 2.6, 4.5), 30.0);
-        BOOST_CHECK_LE(percent_rms_error(c, true, 1, 1, 2.6, 4.5), 35.0);
-        BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 3.175), 10.0);
-        BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 10.0);
+        check_posture_targets_but_c12(c);
         BOOST_CHECK_LE(percent_rms_error(c, true, 0, 1, 2.6, 4.5), 35.0);
         // Per-mode validity is reported; the strong mode is valid over the whole fit, and K(t)
         // on at least 90 % of 2.6-4.5 s (the validity checks do not reject good fits).
@@ -165,14 +171,7 @@ BOOST_AUTO_TEST_CASE(sharp_stiffness_change_at_20_db_with_a_local_roughness) {
                                   << c.tfa.modes.roughness_sd.size() << " knots, scale "
                                   << c.tfa.modes.track_roughness << "):" << report(c));
       BOOST_CHECK(c.tfa.modes.roughness_sd.size() > 0);
-      BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 3.175), 5.0);
-      BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 3.175), 10.0);
-      BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 3.175), 5.0);
-      BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 7.5);
-      BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 10.0);
-      BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
-      BOOST_CHECK_LE(percent_rms_error(c, true, 0, 0, 2.6, 4.5), 30.0);
-      BOOST_CHECK_LE(percent_rms_error(c, true, 1, 1, 2.6, 4.5), 35.0);
+      check_posture_targets_but_c12(c);
       c12_met += percent_rms_error(c, true, 0, 1, 2.6, 4.5) <= 35.0 ? 1 : 0;
       BOOST_CHECK_GE(k_valid_share(c, 2.6, 4.5), 0.9);
     }
