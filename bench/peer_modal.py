@@ -576,6 +576,20 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                    < o["min_mode_separation"]
                    for j in range(modes) for k in range(j + 1, modes))
 
+    def take_fit(problem, candidate, usable, conv, with_dof, merged_fit, accept):
+        """Takes a usable, unmerged fit (fit) when, once one has been taken, accept(rss, dof,
+        price) says so, price = ln(N) s^2 (s^2 the residual's own variance, never below 1)."""
+        size = fit_size(problem, candidate, with_dof) if usable else None
+        if size is None or merged_fit:
+            return False
+        rss, dof = size
+        rows = problem.rd
+        variance = max(1.0, rss / max(1.0, rows - dof))
+        if fit["problem"] is not None and not accept(rss, dof, math.log(rows) * variance):
+            return False
+        fit.update(problem=problem, theta=candidate, converged=conv, rss=rss, dof=dof)
+        return True
+
     def try_candidate(roughness, tie, with_dof, start, accept, restart=False):
         """Fits one candidate from start (with restart, also from the start tracks, the lower
         cost kept); taken (fit) when accept(rss, dof, price) says so; False when it is not
@@ -602,16 +616,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                                 else cost(problem, other) < cost(problem, candidate))):
                 candidate, usable, conv = other, usable2, conv2
                 candidate_merged = other_merged
-        size = fit_size(problem, candidate, with_dof) if usable else None
-        if size is None or candidate_merged:
-            return False
-        rss, dof = size
-        rows = problem.rd
-        variance = max(1.0, rss / max(1.0, rows - dof))
-        if fit["problem"] is not None and not accept(rss, dof, math.log(rows) * variance):
-            return False
-        fit.update(problem=problem, theta=candidate, converged=conv, rss=rss, dof=dof)
-        return True
+        return take_fit(problem, candidate, usable, conv, with_dof, candidate_merged, accept)
 
     def rougher(rss, dof, price):  # BIC: the RSS drop pays for the added effective dof
         return fit["rss"] - rss > price * (dof - fit["dof"])
@@ -718,16 +723,15 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                 if np.max(np.abs(np.log(following / sd))) < math.log(1.05):
                     break
                 sd = following
-            size = fit_size(problem, candidate, True) if usable else None
-            if size is None or merged(candidate):
-                break
-            rss, dof = size
-            price = math.log(problem.rd) * max(1.0, rss / max(1.0, problem.rd - dof))
             knots = int(np.count_nonzero(sd ** 2 * (nu + 2 * modes) > 2.0 * nu * scale ** 2))
-            if not rss + price * (dof + knots) < fit["rss"] + price * (fit["dof"] + local_knots):
+
+            def lower(rss, dof, price):
+                return rss + price * (dof + knots) < fit["rss"] + price * (fit["dof"] + local_knots)
+
+            if not take_fit(problem, candidate, usable, conv, True, usable and merged(candidate),
+                            lower):
                 break
             local_knots = knots
-            fit.update(problem=problem, theta=candidate, converged=conv, rss=rss, dof=dof)
             roughness_sd, res["track_roughness"] = sd, scale
         if res["track_roughness"] != uniform_roughness:
             res["roughness_sd"] = roughness_sd
