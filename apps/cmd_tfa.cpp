@@ -255,6 +255,7 @@ void run(TfaCommandOptions cli) {
                            {"shape_weight_from_data", mo.shape_weight < 0.0},
                            {"track_roughness_from_data", mo.track_roughness < 0.0},
                            {"local_roughness_dof", mo.local_roughness_dof},
+                           {"lost_track_time_s", mo.lost_track_time_s},
                            {"decay_tie", r.modes.decay_tie},
                            {"decay_tie_from_data", mo.decay_tie < 0.0},
                            {"frequency_tie", r.modes.frequency_tie},
@@ -429,6 +430,12 @@ void add_tfa_command(CLI::App& app) {
                   "the roughness vary along the record, rough only where the tracks bend (a sharp "
                   "stiffness change); kept when its BIC is lower (0: one roughness for the whole "
                   "record; docs/tfa_modal.md, \"Local roughness\")")
+      ->capture_default_str();
+  sub->add_option("--lost-track-time-s", o.modes.lost_track_time_s,
+                  "modal: after the last time a mode is valid (it sank into the noise), its "
+                  "frequency and decay tracks go on from there with their slopes decaying with "
+                  "this time constant, s (0: held constant; < 0: the splines' straight-line "
+                  "extrapolation); those times stay invalid (docs/tfa_modal.md, \"Lost modes\")")
       ->capture_default_str();
   sub->add_option("--decay-tie", o.modes.decay_tie,
                   "modal: prior SD of the soft tie alpha_j(t) = rho_j alpha_1(t) of the decay "

@@ -38,7 +38,8 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     effective dof from the trace of their penalized smoother), is lower and its frequency tracks
     do not cross;
     posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including the mode-to-data power and
-    separation checks (damped_modes.cpp);
+    separation checks (damped_modes.cpp); after a mode's last valid sample its tracks go on as a
+    damped trend (lost_track_time_s);
   - eqs 45-46 and the eq-48 mapping to K(t), C(t), P(t) (eq 43 weighted by the modes' ANR
     power), a lost mode's column of P completed from the valid ones (modal_parameters.cpp), the
     per-time modal quantities and eq 49's normalized force (tfa.cpp, normalized_force.cpp);
@@ -83,7 +84,7 @@ OPTIONS = dict(decimate_hz=200.0, skip_s=0.025, noise_window_s=1.0, knot_spacing
                shape_knot_spacing_s=0.5, shape_weight=-1.0, track_roughness=-1.0,
                local_roughness_dof=1.0, decay_tie=0.0, init_window_s=0.5, anr_threshold_db=0.0,
                max_frequency_sd_hz=0.1, max_mode_to_data_db=20.0, min_mode_separation=0.01,
-               max_iterations=100, mapping="eq48")
+               max_iterations=100, lost_track_time_s=0.3, mapping="eq48")
 PRE_ONSET_S, PULSE_S = 0.2, 0.02
 ROUGHNESS_GRID = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 TIE_GRID = (0.3, 0.1, 0.03, 0.01, 0.003)
@@ -857,7 +858,30 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     order = sorted(range(modes), key=lambda j: tracks[j]["omega"].mean())
     res["modes"] = [tracks[j] for j in order]
     res["fitted"] = fitted
+    if o["lost_track_time_s"] >= 0:
+        continue_lost_tracks(res["t_s"], o["lost_track_time_s"], o["anr_threshold_db"],
+                             res["modes"])
     return res
+
+
+def continue_lost_tracks(t_s, time_s, anr_threshold_db, tracks):
+    """After the last valid sample of a mode that sank into the noise (ANR below the threshold at
+    every later sample), omega and alpha (and their slopes) go on as a damped trend (time
+    constant time_s; 0: held); envelope, phase and ANR stay the fitted model's."""
+    for mt in tracks:
+        valid = np.nonzero(mt["valid"])[0]
+        if valid.size == 0 or valid[-1] == t_s.size - 1:
+            continue
+        last = valid[-1]
+        if not np.all(mt["anr_db"][last + 1:] < anr_threshold_db):
+            continue
+        s = t_s[last + 1:] - t_s[last]
+        decay = np.exp(-s / time_s) if time_s > 0 else np.zeros_like(s)
+        rise = time_s * (1.0 - decay)
+        for name in ("omega", "alpha"):
+            mt[name][last + 1:] = mt[name][last] + mt[name + "_dot"][last] * rise
+            mt[name + "_dot"][last + 1:] = mt[name + "_dot"][last] * decay
+        mt["f"] = mt["omega"] / (2 * np.pi)
 
 
 def flag_degenerate_modes(p, o, tracks):

@@ -62,6 +62,9 @@ void check_options(const DampedModesOptions& o) {
   if (!(o.local_roughness_dof >= 0.0 && std::isfinite(o.local_roughness_dof)))
     fail("local_roughness_dof (--local-roughness-dof)",
          "must be non-negative and finite (0: one roughness for the whole record)");
+  if (!std::isfinite(o.lost_track_time_s))
+    fail("lost_track_time_s (--lost-track-time-s)",
+         "must be finite (s; 0: held; negative: the splines' straight line)");
   if (!std::isfinite(o.decay_tie))
     fail("decay_tie (--decay-tie)", "must be finite (relative SD; 0: no tie)");
   if (!std::isfinite(o.frequency_tie))
@@ -699,6 +702,40 @@ void flag_degenerate_modes(const Prepared& p, const DampedModesOptions& options,
                      2.0 * (a.frequency_sd_hz(i) + b.frequency_sd_hz(i)));
         if (!(gap > limit)) a.valid(i) = b.valid(i) = false;
       }
+    }
+  }
+}
+
+// A mode that sinks into the noise before the record ends leaves its tracks to the roughness
+// prior there, whose second differences continue them in a straight line from the last bend the
+// data made, without bound. From the last sample t0 at which mode j is valid, omega_j and alpha_j
+// (and their slopes, for eqs 45-48) are instead continued as a damped trend: x(t) = x(t0) + x'(t0)
+// T (1 - exp(-(t - t0) / T)), T = time_s (0: held), value and slope continuous at t0. The
+// samples stay invalid. The envelope, phase and ANR stay the fitted model's (a mode below the
+// noise: rescaling them by the changed alpha let them grow again, Duffing reach trial at 10 dB).
+// Only a mode that sank into the noise is continued: its ANR below anr_threshold_db at every
+// sample after t0. Invalid samples whose ANR is higher were flagged by the other checks, and
+// their tracks are still the data's. Modes never valid, or valid at the last sample, are left
+// alone.
+void continue_lost_tracks(const Eigen::VectorXd& t_s, double time_s, double anr_threshold_db,
+                          std::vector<ModeTrack>& modes) {
+  const Eigen::Index n = t_s.size();
+  for (ModeTrack& mt : modes) {
+    Eigen::Index last = n - 1;
+    while (last >= 0 && !mt.valid(last)) --last;
+    if (last < 0 || last == n - 1) continue;
+    if (!(mt.anr_db.tail(n - 1 - last).array() < anr_threshold_db).all()) continue;
+    const double w0 = mt.omega_rad_per_s(last), w_slope = mt.omega_dot_rad_per_s2(last);
+    const double a0 = mt.alpha_per_s(last), a_slope = mt.alpha_dot_per_s2(last);
+    for (Eigen::Index i = last + 1; i < n; ++i) {
+      const double s = t_s(i) - t_s(last);
+      const double decay = time_s > 0.0 ? std::exp(-s / time_s) : 0.0;
+      const double rise = time_s * (1.0 - decay);  // int_0^s exp(-u / T) du; 0 when held
+      mt.omega_rad_per_s(i) = w0 + w_slope * rise;
+      mt.frequency_hz(i) = mt.omega_rad_per_s(i) / (2.0 * M_PI);
+      mt.omega_dot_rad_per_s2(i) = w_slope * decay;
+      mt.alpha_per_s(i) = a0 + a_slope * rise;
+      mt.alpha_dot_per_s2(i) = a_slope * decay;
     }
   }
 }
@@ -1600,6 +1637,9 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   const std::vector<int> order = finish_modes(p, options, result.modes);
   for (std::size_t i = 0; i < order.size(); ++i)
     if (order[i] == fp.second_order_mode()) result.second_order_mode = static_cast<int>(i);
+  if (options.lost_track_time_s >= 0.0)
+    continue_lost_tracks(result.t_s, options.lost_track_time_s, options.anr_threshold_db,
+                         result.modes);
   return result;
 }
 

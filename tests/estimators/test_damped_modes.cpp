@@ -626,6 +626,21 @@ BOOST_AUTO_TEST_CASE(a_mode_sinking_into_the_noise_is_flagged_invalid) {
   BOOST_CHECK_EQUAL(valid_wrong, 0);
 }
 
+// The weak mode of close_modes() decaying fast (alpha -5 1/s) while its frequency rises by 30 %
+// along a sigmoid (k = 4/s, centred 0.6 s into the response): it sinks into the 20 dB noise while
+// the change is under way.
+std::vector<ClosedFormMode> sinking_while_rising_modes() {
+  constexpr double k = 4.0, centre = 0.6, rise = 0.3, f0 = 3.4, alpha = -5.0;
+  std::vector<ClosedFormMode> modes = close_modes(0.3);
+  modes[1].f_hz = [](double tau) { return f0 * (1.0 + rise * sigmoid(k * (tau - centre))); };
+  modes[1].alpha_per_s = [](double) { return alpha; };
+  modes[1].phi = [](double tau) {
+    return std::complex<double>(alpha * tau,
+                                2.0 * M_PI * f0 * (tau + rise * sigmoid_integral(tau, k, centre)));
+  };
+  return modes;
+}
+
 // Two modes whose frequencies double within 0.15 s (10-90 %) along a steep sigmoid (k = 30/s)
 // 1.2 s into the response, as with a stiffness that quadruples (sharp K, docs/tfa_modal.md), the
 // decay rates constant.
@@ -694,6 +709,60 @@ BOOST_AUTO_TEST_CASE(a_step_in_the_tracks_gets_a_local_roughness_and_the_rest_st
     BOOST_CHECK_SMALL(whole.f_rel, 0.01);
     BOOST_CHECK_SMALL(whole.alpha_rel, 0.05);
   }
+}
+
+BOOST_AUTO_TEST_CASE(a_lost_modes_tracks_go_on_as_a_damped_trend_not_a_straight_line) {
+  // After the last sample at which the weak mode is valid, the data no longer determine its
+  // tracks. The splines' prior would continue them in a straight line without bound; they are
+  // continued as a damped trend (lost_track_time_s), held with 0, and stay flagged.
+  const std::vector<ClosedFormMode> modes = sinking_while_rising_modes();
+  auto fit = [&](double time_s) {
+    DampedModesOptions o;
+    o.lost_track_time_s = time_s;
+    return fit_noisy(modes, 20.0, 5, o);
+  };
+  const DampedModesResult line = fit(-1.0), held = fit(0.0), trend = fit(0.3);
+  const auto& weak = trend.modes[1];
+  Eigen::Index last = weak.valid.size() - 1;
+  while (last >= 0 && !weak.valid(last)) --last;
+  BOOST_REQUIRE(last > 0);
+  const double lost_s = trend.t_s(last);
+  BOOST_TEST_MESSAGE("weak mode last valid at " << lost_s << " s (" << lost_s - kFreeS
+                                                << " s into the response)");
+  BOOST_REQUIRE(lost_s < kFreeS + 1.0);  // lost while the sigmoid still rises
+  const double f0 = weak.frequency_hz(last), slope = weak.omega_dot_rad_per_s2(last) / (2 * M_PI);
+  double line_error = 0.0, trend_error = 0.0;
+  int lost = 0;
+  for (Eigen::Index i = 0; i < trend.t_s.size(); ++i) {
+    // Up to the last valid sample the continuation changes nothing.
+    if (i <= last) {
+      BOOST_CHECK_EQUAL(trend.modes[1].frequency_hz(i), line.modes[1].frequency_hz(i));
+      BOOST_CHECK_EQUAL(trend.modes[1].alpha_per_s(i), line.modes[1].alpha_per_s(i));
+      continue;
+    }
+    ++lost;
+    BOOST_CHECK(!weak.valid(i) && !held.modes[1].valid(i) && !line.modes[1].valid(i));
+    // Held: the last valid value, slopes zero.
+    BOOST_CHECK_EQUAL(held.modes[1].frequency_hz(i), held.modes[1].frequency_hz(last));
+    BOOST_CHECK_EQUAL(held.modes[1].alpha_per_s(i), held.modes[1].alpha_per_s(last));
+    BOOST_CHECK_EQUAL(held.modes[1].omega_dot_rad_per_s2(i), 0.0);
+    // The damped trend stays between the held value and slope x 0.3 s beyond it.
+    const double change = weak.frequency_hz(i) - f0;
+    BOOST_CHECK_LE(std::abs(change), std::abs(slope) * 0.3 * (1.0 + 1e-12));
+    BOOST_CHECK_GE(change * slope, 0.0);
+    const double truth = modes[1].f_hz(trend.t_s(i) - kFreeS);
+    line_error += std::pow(line.modes[1].frequency_hz(i) / truth - 1.0, 2);
+    trend_error += std::pow(weak.frequency_hz(i) / truth - 1.0, 2);
+  }
+  BOOST_REQUIRE(lost > 0);
+  line_error = std::sqrt(line_error / lost);
+  trend_error = std::sqrt(trend_error / lost);
+  BOOST_TEST_MESSAGE("after the loss: f RMS relative error, straight line " << line_error
+                                                                               << ", damped trend "
+                                                                               << trend_error);
+  // The strong mode is never lost: unchanged.
+  BOOST_CHECK(trend.modes[0].frequency_hz == line.modes[0].frequency_hz);
+  BOOST_CHECK_LT(trend_error, line_error);
 }
 
 BOOST_AUTO_TEST_CASE(rejects_records_without_noise_window_or_free_response) {

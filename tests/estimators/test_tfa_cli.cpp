@@ -120,7 +120,7 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "frequency_tie",
                           "frequency_tie_from_data", "shape_weight", "real_terms",
                           "real_terms_from_data", "offsets", "shape_refit", "shape_phase_factor",
-                          "local_roughness_dof"}) {
+                          "local_roughness_dof", "lost_track_time_s"}) {
     BOOST_CHECK_MESSAGE(j["options"].contains(key), key);
   }
   // The noise-free constant-K trial needs no rough tracks: the shape refit is not taken, and the
@@ -128,12 +128,18 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   BOOST_CHECK(!j["options"]["shape_refit"].get<bool>());
   BOOST_CHECK(j["track_roughness_local"].is_null());
   BOOST_CHECK_EQUAL(j["options"]["local_roughness_dof"].get<double>(), 1.0);
+  BOOST_CHECK_EQUAL(j["options"]["lost_track_time_s"].get<double>(), 0.3);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --no-shape-refit -o " +
                         scratch("no_refit.json").string()),
                     0);
   // A negative nu of the local roughness is refused by name (exit 2), and nothing is written.
   const fs::path bad = scratch("bad_local.json");
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --local-roughness-dof -1 -o " +
+                        bad.string()),
+                    2);
+  BOOST_CHECK(!fs::exists(bad));
+  // So is a lost-track time constant that is not a number.
+  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --lost-track-time-s nan -o " +
                         bad.string()),
                     2);
   BOOST_CHECK(!fs::exists(bad));

@@ -477,19 +477,23 @@ BOOST_AUTO_TEST_CASE(a_refit_whose_modes_come_within_the_shape_bandwidth_is_not_
 
 BOOST_AUTO_TEST_CASE(stiffness_of_one_joint_rising_while_its_mode_sinks_into_the_noise) {
   // models/specs/piovesan_posture_k22_only.json: K = [35 5; 5 20 u(t)] N m/rad, C = 0.01 K(t), so
-  // the elbow mode decays ever faster and is lost in the noise from ~3.85 s (20 dB, 90 degrees,
-  // seed 2). Those frames are flagged (K_valid ~ 2/3 of 2.6-4.5 s); there eq 48's P comes from
-  // the shoulder mode alone (the lost mode's column its M^1/2-orthogonal complement). Issue 7's
-  // targets over 2.6-4.5 s, k11, k22 <= 10 %, k12 <= 25 %, are met: k12 21.6 % (60.1 % when the
-  // lost mode's extrapolated shape entered P).
-  const Case c = run_spec(spec_at("piovesan_posture_k22_only", 90.0), 20.0, 2);
-  BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
-  BOOST_TEST_MESSAGE("k22 only, 90 deg, seed 2 (K_valid " << k_valid_share(c, 2.6, 4.5)
-                                                          << "):" << report(c));
-  BOOST_CHECK_LT(k_valid_share(c, 2.6, 4.5), 0.8);  // the lost frames are flagged
-  BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 10.0);
-  BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
-  BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 25.0);
+  // the elbow mode decays ever faster and is lost in the noise from ~3.85 s, while k22 still
+  // rises (20 dB, seed 2). Those frames are flagged (K_valid ~ 2/3 of 2.6-4.5 s); there eq 48's P
+  // comes from the shoulder mode alone (the lost mode's column its M^1/2-orthogonal complement),
+  // and the elbow mode's tracks go on as a damped trend from their last valid frame
+  // (lost_track_time_s). Issue 7's targets over 2.6-4.5 s, k11, k22 <= 10 %, k12 <= 25 %, are met
+  // at 45, 90 and 135 degrees: k22 7.0, 8.5, 3.5 % (the splines' straight line: 10.5, 9.1,
+  // 14.9 %); k12 8.1, 5.5, 5.2 %.
+  for (const double direction : {45.0, 90.0, 135.0}) {
+    const Case c = run_spec(spec_at("piovesan_posture_k22_only", direction), 20.0, 2);
+    BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
+    BOOST_TEST_MESSAGE("k22 only, " << direction << " deg, seed 2 (K_valid "
+                                    << k_valid_share(c, 2.6, 4.5) << "):" << report(c));
+    BOOST_CHECK_LT(k_valid_share(c, 2.6, 4.5), 0.8);  // the lost frames are flagged
+    BOOST_CHECK_LE(percent_rms_error(c, false, 0, 0, 2.6, 4.5), 10.0);
+    BOOST_CHECK_LE(percent_rms_error(c, false, 1, 1, 2.6, 4.5), 10.0);
+    BOOST_CHECK_LE(percent_rms_error(c, false, 0, 1, 2.6, 4.5), 25.0);
+  }
 }
 
 BOOST_AUTO_TEST_CASE(poynting_thomson_posture_trial_is_fitted_with_a_real_term) {
