@@ -865,15 +865,16 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
 
 
 def continue_lost_tracks(t_s, time_s, anr_threshold_db, tracks):
-    """After the last valid sample of a mode that sank into the noise (ANR below the threshold at
-    every later sample), omega and alpha (and their slopes) go on as a damped trend (time
-    constant time_s; 0: held); envelope, phase and ANR stay the fitted model's."""
+    """After the last valid sample of a mode that sank into the noise (ANR never above its value
+    there, below the threshold at the end), omega and alpha (and their slopes) go on as a damped
+    trend (time constant time_s; 0: held); envelope, phase and ANR stay the fitted model's."""
     for mt in tracks:
         valid = np.nonzero(mt["valid"])[0]
         if valid.size == 0 or valid[-1] == t_s.size - 1:
             continue
         last = valid[-1]
-        if not np.all(mt["anr_db"][last + 1:] < anr_threshold_db):
+        anr = mt["anr_db"]
+        if not (anr[-1] < anr_threshold_db and np.all(anr[last + 1:] <= anr[last])):
             continue
         s = t_s[last + 1:] - t_s[last]
         decay = np.exp(-s / time_s) if time_s > 0 else np.zeros_like(s)

@@ -713,10 +713,11 @@ void flag_degenerate_modes(const Prepared& p, const DampedModesOptions& options,
 // T (1 - exp(-(t - t0) / T)), T = time_s (0: held), value and slope continuous at t0. The
 // samples stay invalid. The envelope, phase and ANR stay the fitted model's (a mode below the
 // noise: rescaling them by the changed alpha let them grow again, Duffing reach trial at 10 dB).
-// Only a mode that sank into the noise is continued: its ANR below anr_threshold_db at every
-// sample after t0. Invalid samples whose ANR is higher were flagged by the other checks, and
-// their tracks are still the data's. Modes never valid, or valid at the last sample, are left
-// alone.
+// Only a mode that sank into the noise is continued: its ANR never above its value at t0 after
+// it, and below anr_threshold_db at the end (the frequency SD may flag it a few dB before the
+// ANR test does). A mode flagged by the other checks while its power stays up or comes back
+// (merged tracks, model error) keeps the tracks the data gave it. Modes never valid, or valid
+// at the last sample, are left alone.
 void continue_lost_tracks(const Eigen::VectorXd& t_s, double time_s, double anr_threshold_db,
                           std::vector<ModeTrack>& modes) {
   const Eigen::Index n = t_s.size();
@@ -724,7 +725,9 @@ void continue_lost_tracks(const Eigen::VectorXd& t_s, double time_s, double anr_
     Eigen::Index last = n - 1;
     while (last >= 0 && !mt.valid(last)) --last;
     if (last < 0 || last == n - 1) continue;
-    if (!(mt.anr_db.tail(n - 1 - last).array() < anr_threshold_db).all()) continue;
+    if (!(mt.anr_db(n - 1) < anr_threshold_db) ||
+        !(mt.anr_db.tail(n - 1 - last).array() <= mt.anr_db(last)).all())
+      continue;
     const double w0 = mt.omega_rad_per_s(last), w_slope = mt.omega_dot_rad_per_s2(last);
     const double a0 = mt.alpha_per_s(last), a_slope = mt.alpha_dot_per_s2(last);
     for (Eigen::Index i = last + 1; i < n; ++i) {

@@ -82,10 +82,11 @@ struct DampedModesOptions {
                                         ///< smoothest, kept when its BIC is lower (> 0,
                                         ///< dimensionless; 0: one roughness for the whole
                                         ///< record; docs/tfa_modal.md, "Local roughness")
-  double lost_track_time_s = 0.3;       ///< design whole: a mode that sank into the noise (ANR
-                                        ///< below anr_threshold_db at every sample after its last
-                                        ///< valid one) has tracks the data no longer determine
-                                        ///< there; omega_j and alpha_j are continued from its
+  double lost_track_time_s = 0.3;       ///< design whole: a mode that sank into the noise
+                                        ///< (after its last valid sample its ANR never rises
+                                        ///< above its value there and ends below
+                                        ///< anr_threshold_db) has tracks the data no longer
+                                        ///< determine there; omega_j and alpha_j are continued from its
                                         ///< last valid sample with their slopes decaying with
                                         ///< this time constant, s (a damped trend; 0: held
                                         ///< constant; < 0: the splines' own straight-line

@@ -714,7 +714,8 @@ BOOST_AUTO_TEST_CASE(a_step_in_the_tracks_gets_a_local_roughness_and_the_rest_st
 BOOST_AUTO_TEST_CASE(a_lost_modes_tracks_go_on_as_a_damped_trend_not_a_straight_line) {
   // After the last sample at which the weak mode is valid, the data no longer determine its
   // tracks. The splines' prior would continue them in a straight line without bound; they are
-  // continued as a damped trend (lost_track_time_s), held with 0, and stay flagged.
+  // continued as a damped trend (lost_track_time_s), held with 0, and stay flagged. Only a mode
+  // that sank below the ANR threshold is continued.
   const std::vector<ClosedFormMode> modes = sinking_while_rising_modes();
   auto fit = [&](double time_s) {
     DampedModesOptions o;
@@ -763,6 +764,18 @@ BOOST_AUTO_TEST_CASE(a_lost_modes_tracks_go_on_as_a_damped_trend_not_a_straight_
   // The strong mode is never lost: unchanged.
   BOOST_CHECK(trend.modes[0].frequency_hz == line.modes[0].frequency_hz);
   BOOST_CHECK_LT(trend_error, line_error);
+  // A mode flagged while its ANR has not sunk below the threshold (here -300 dB: only the
+  // frequency-SD test flags it) keeps the splines' tracks.
+  auto unsunk = [&](double time_s) {
+    DampedModesOptions o;
+    o.lost_track_time_s = time_s;
+    o.anr_threshold_db = -300.0;
+    return fit_noisy(modes, 20.0, 5, o);
+  };
+  const DampedModesResult kept = unsunk(0.3), kept_line = unsunk(-1.0);
+  BOOST_REQUIRE(!kept.modes[1].valid(kept.t_s.size() - 1));
+  BOOST_CHECK(kept.modes[1].frequency_hz == kept_line.modes[1].frequency_hz);
+  BOOST_CHECK(kept.modes[1].alpha_per_s == kept_line.modes[1].alpha_per_s);
 }
 
 BOOST_AUTO_TEST_CASE(rejects_records_without_noise_window_or_free_response) {
