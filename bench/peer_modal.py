@@ -1062,6 +1062,7 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
                        "shape_weight_from_data": OPTIONS["shape_weight"] < 0,
                        "track_roughness_from_data": OPTIONS["track_roughness"] < 0,
                        "local_roughness_dof": OPTIONS["local_roughness_dof"],
+                       "lost_track_time_s": OPTIONS["lost_track_time_s"],
                        "decay_tie": fit["decay_tie"],
                        "decay_tie_from_data": OPTIONS["decay_tie"] < 0,
                        "shape_refit": bool(fit["shape_refit"]),

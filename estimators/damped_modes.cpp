@@ -556,9 +556,14 @@ Eigen::MatrixXd prior_rows(const UniformCubicBspline& track, int modes, const Ei
   return rows;
 }
 
-// The same with one roughness for the whole record.
+// One roughness for the whole record: the same SD at every second difference's knot.
+Eigen::VectorXd constant_roughness(const UniformCubicBspline& track, double roughness) {
+  return Eigen::VectorXd::Constant(track.size() - 2, roughness);
+}
+
+// The prior rows with one roughness for the whole record.
 Eigen::MatrixXd prior_rows(const UniformCubicBspline& track, int modes, double roughness) {
-  return prior_rows(track, modes, Eigen::VectorXd::Constant(track.size() - 2, roughness));
+  return prior_rows(track, modes, constant_roughness(track, roughness));
 }
 
 // The linear parameters' design at theta: data rows `a` and shape-penalty rows `r` (without the
@@ -1036,7 +1041,6 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   if (options.design == ModalDesign::sliding) return fit_sliding(p, options, pencils, real, result);
   const int m = track.size();
   const Eigen::MatrixXd integrals = track.integrals(p.tau_s);
-  auto uniform = [&](double roughness) { return Eigen::VectorXd::Constant(m - 2, roughness); };
   Eigen::VectorXd theta(2 * modes * m + real);
   theta.head(2 * modes * m) = start_tracks(p, track, pencils, options);
   theta.tail(real) = pencils.global.real_rate_per_s;
@@ -1343,7 +1347,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     result.track_roughness = grid[g];
   }
   const double uniform_roughness = result.track_roughness;  // stage 1's, for the shape refit
-  Eigen::VectorXd roughness_sd = uniform(uniform_roughness);
+  Eigen::VectorXd roughness_sd = constant_roughness(track, uniform_roughness);
 
   // Local roughness: one roughness for the whole record must be as rough as the sharpest bend of
   // any track (a stiffness change within 0.15 s), and then lets every track wobble elsewhere.
@@ -1454,7 +1458,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     const VpProblem base(p, modes, integrals, constant, terms, {}, 0.0,
                          prior_rows(track, modes, grid[0]), TrackTies{}, real, options.offsets,
                          so_mode);
-    design = shape_design(base, smoothest, uniform(grid[0]));
+    design = shape_design(base, smoothest, constant_roughness(track, grid[0]));
     std::unique_ptr<VpProblem> first_problem = std::move(final_problem);
     const Eigen::VectorXd first_theta = theta;
     const StageOutcome first_outcome = outcome;
@@ -1488,8 +1492,9 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     };
     if (stage1) {
       Design again = design;
-      again.weight = gcv_weight(design, theta, uniform(refit_roughness));
-      if (again.weight != design.weight && fit_design(again, uniform(refit_roughness), stage1))
+      const Eigen::VectorXd refit_sd = constant_roughness(track, refit_roughness);
+      again.weight = gcv_weight(design, theta, refit_sd);
+      if (again.weight != design.weight && fit_design(again, refit_sd, stage1))
         design.weight = again.weight;
       // The first fit's size, its bent knots counted when it has a local roughness.
       std::optional<std::pair<double, double>> first_size;
