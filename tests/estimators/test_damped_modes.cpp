@@ -717,9 +717,10 @@ BOOST_AUTO_TEST_CASE(a_lost_modes_tracks_go_on_as_a_damped_trend_not_a_straight_
   // continued as a damped trend (lost_track_time_s), held with 0, and stay flagged. Only a mode
   // that sank below the ANR threshold is continued.
   const std::vector<ClosedFormMode> modes = sinking_while_rising_modes();
-  auto fit = [&](double time_s) {
+  auto fit = [&](double time_s, double anr_threshold_db = DampedModesOptions{}.anr_threshold_db) {
     DampedModesOptions o;
     o.lost_track_time_s = time_s;
+    o.anr_threshold_db = anr_threshold_db;
     return fit_noisy(modes, 20.0, 5, o);
   };
   const DampedModesResult line = fit(-1.0), held = fit(0.0), trend = fit(0.3);
@@ -766,13 +767,7 @@ BOOST_AUTO_TEST_CASE(a_lost_modes_tracks_go_on_as_a_damped_trend_not_a_straight_
   BOOST_CHECK_LT(trend_error, line_error);
   // A mode flagged while its ANR has not sunk below the threshold (here -300 dB: only the
   // frequency-SD test flags it) keeps the splines' tracks.
-  auto unsunk = [&](double time_s) {
-    DampedModesOptions o;
-    o.lost_track_time_s = time_s;
-    o.anr_threshold_db = -300.0;
-    return fit_noisy(modes, 20.0, 5, o);
-  };
-  const DampedModesResult kept = unsunk(0.3), kept_line = unsunk(-1.0);
+  const DampedModesResult kept = fit(0.3, -300.0), kept_line = fit(-1.0, -300.0);
   BOOST_REQUIRE(!kept.modes[1].valid(kept.t_s.size() - 1));
   BOOST_CHECK(kept.modes[1].frequency_hz == kept_line.modes[1].frequency_hz);
   BOOST_CHECK(kept.modes[1].alpha_per_s == kept_line.modes[1].alpha_per_s);
