@@ -7,7 +7,8 @@
 
 namespace stiffid::apps {
 
-void check_distinct(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs) {
+void check_distinct(const std::vector<std::string>& inputs,
+                    const std::vector<std::string>& outputs) {
   std::set<std::string> seen;
   for (const auto* list : {&inputs, &outputs}) {
     for (const auto& name : *list) {

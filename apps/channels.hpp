@@ -9,7 +9,8 @@
 namespace stiffid::apps {
 
 /// Throws InputError when a channel appears twice across --inputs and --outputs.
-void check_distinct(const std::vector<std::string>& inputs, const std::vector<std::string>& outputs);
+void check_distinct(const std::vector<std::string>& inputs,
+                    const std::vector<std::string>& outputs);
 
 /// CSV options of a trial read with `--fs sample_rate_hz` (Hz; 0: from the t column); throws
 /// InputError naming --fs when it is negative or not finite.

@@ -89,8 +89,9 @@ void run_frf_fit(const FitArgs& a) {
 
 void run_tfa_fit(const FitArgs& a) {
   if (!a.trial.empty() || !a.inputs.empty() || !a.outputs.empty() || !a.frf.empty()) {
-    throw InputError("--tfa: give either TRIAL.csv with --inputs/--outputs, --frf or --tfa, "
-                     "not several");
+    throw InputError(
+        "--tfa: give either TRIAL.csv with --inputs/--outputs, --frf or --tfa, "
+        "not several");
   }
   fitting::TfaFitOptions o;
   o.model = fitting::parse_lumped_model(a.model, "fit MODEL");
@@ -122,7 +123,8 @@ void run_fit(const FitArgs& a) {
   }
   if (a.trial.empty()) throw InputError("fit: expected TRIAL.csv (or --frf / --tfa)");
   if (a.inputs.empty()) throw InputError("--inputs: expected the force channels, e.g. fx,fy");
-  if (a.outputs.empty()) throw InputError("--outputs: expected the displacement channels, e.g. x,y");
+  if (a.outputs.empty())
+    throw InputError("--outputs: expected the displacement channels, e.g. x,y");
   fitting::LumpedFitOptions o;
   o.model = fitting::parse_lumped_model(a.model, "fit MODEL");
   o.hold = fitting::parse_input_hold(a.hold);
@@ -132,9 +134,8 @@ void run_fit(const FitArgs& a) {
   o.max_iterations = a.max_iterations;
   if (!a.bounds.empty()) o.ranges = fitting::read_ranges_json(a.bounds, o.model);
   const data::Trial trial = data::read_trial_csv(a.trial);
-  const fitting::LumpedFitResult r =
-      fitting::fit_lumped(trial, data::split_list(a.inputs, "--inputs"),
-                          data::split_list(a.outputs, "--outputs"), o);
+  const fitting::LumpedFitResult r = fitting::fit_lumped(
+      trial, data::split_list(a.inputs, "--inputs"), data::split_list(a.outputs, "--outputs"), o);
   if (!r.status.ok) throw NumericalFailure(r.status.message);
   data::write_json(a.out, fitting::to_json(r));
 }
@@ -150,7 +151,8 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("--inputs", args->inputs, "force channels (N), comma separated");
   cmd->add_option("--outputs", args->outputs, "displacement channels (m), comma separated");
   cmd->add_option("--hold", args->hold, "inputs between samples: foh (linear) or zoh (held)");
-  cmd->add_option("--starts", args->starts, "multi-start local solves (box centre + Latin hypercube)");
+  cmd->add_option("--starts", args->starts,
+                  "multi-start local solves (box centre + Latin hypercube)");
   cmd->add_option("--seed", args->seed, "seed of the Latin hypercube");
   cmd->add_option("--bounds", args->bounds, "JSON {NAME: [lower, upper]} start box per matrix");
   cmd->add_option("--segment", args->segment_s, "multiple-shooting segment length, s (0: single)");

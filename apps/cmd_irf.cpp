@@ -123,7 +123,9 @@ nlohmann::json to_json(const estimators::IrfResult& result, const std::vector<st
                        const estimators::IrfOptions& options) {
   const estimators::IrfInverse inverse = options.inverse;
   const bool least_squares = options.least_squares;
-  auto vector = [](const Eigen::VectorXd& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
+  auto vector = [](const Eigen::VectorXd& v) {
+    return std::vector<double>(v.data(), v.data() + v.size());
+  };
   nlohmann::json out;
   out["fs"] = result.sample_rate_hz;
   out["inputs"] = inputs;
@@ -131,7 +133,8 @@ nlohmann::json to_json(const estimators::IrfResult& result, const std::vector<st
   out["lag_s"] = vector(result.lag_s);
   out["lag_samples"] = {result.first_lag, result.last_lag};
   for (int j = 0; j < result.outputs; ++j) {
-    for (int i = 0; i < result.inputs; ++i) out["irf"][outputs[j]][inputs[i]] = vector(result.irf(j, i));
+    for (int i = 0; i < result.inputs; ++i)
+      out["irf"][outputs[j]][inputs[i]] = vector(result.irf(j, i));
     out["vaf_percent"][outputs[j]] = result.vaf_percent(j);
     out["vaf_correlation_percent"][outputs[j]] = result.vaf_correlation_percent(j);
   }
@@ -161,9 +164,9 @@ void run(const IrfCommandOptions& cli, CLI::Option* pinv_flag) {
                         "the " + std::to_string(options.last_lag - options.first_lag + 1) +
                             " IRF lags of --lags " + cli.lags);
 
-  const estimators::IrfResult result = estimators::estimate_irf(
-      trial.column_view(inputs).matrix(), trial.column_view(outputs).matrix(),
-      trial.sample_rate_hz, options);
+  const estimators::IrfResult result =
+      estimators::estimate_irf(trial.column_view(inputs).matrix(),
+                               trial.column_view(outputs).matrix(), trial.sample_rate_hz, options);
   if (!result.status.ok) throw NumericalFailure(result.status.message);
   data::write_json(cli.output_path, to_json(result, inputs, outputs, options));
 }
@@ -185,11 +188,13 @@ void add_irf_command(CLI::App& app) {
   CLI::Option* pinv = sub->add_option(
       "--pinv", cli->pinv,
       "robust pseudo-inverse (Westwick & Kearney 1997): keep RANK eigenvectors, or choose them "
-      "by MDL (default when no value is given), or 'tsvd': MDL over eigenvectors in eigenvalue order");
+      "by MDL (default when no value is given), or 'tsvd': MDL over eigenvectors in eigenvalue "
+      "order");
   pinv->expected(0, 1);
-  sub->add_flag("--least-squares", cli->least_squares,
-                "exact least squares: Psi = Z^T Z of the zero-padded lagged inputs instead of the "
-                "biased-correlation Toeplitz matrix of eq 11 (no edge error; see estimators/irf.hpp)");
+  sub->add_flag(
+      "--least-squares", cli->least_squares,
+      "exact least squares: Psi = Z^T Z of the zero-padded lagged inputs instead of the "
+      "biased-correlation Toeplitz matrix of eq 11 (no edge error; see estimators/irf.hpp)");
   sub->add_option("--fs", cli->sample_rate_hz, "sampling rate in Hz (required without a t column)");
   sub->add_option("-o,--output", cli->output_path, "output JSON file (default: stdout)");
   sub->callback([cli, pinv]() { run(*cli, pinv); });

@@ -54,7 +54,8 @@ void add_regress_command(CLI::App& app) {
       "regress", "Classical regressions dF = M dx'' + B dx' + K dx from perturbation trials");
   cmd->add_option("method", args->method, "force-pulse | disp-full | disp-ss")->required();
   cmd->add_option("trials", args->trials, "trial CSVs (t, th1, th2, x, y, fx, fy)")->required();
-  cmd->add_option("--onset", args->onset, "auto (from the force) or the onset time of every trial, s");
+  cmd->add_option("--onset", args->onset,
+                  "auto (from the force) or the onset time of every trial, s");
   cmd->add_option("--profile-hz", args->profile_hz, "rate of the PCHIP time profile, Hz");
   cmd->add_option("--baseline", args->baseline, "unperturbed trial (same columns) as baseline");
   cmd->add_option("-o,--output", args->out, "output JSON (stdout when absent)");

@@ -34,9 +34,9 @@ void run(const StudyFlags& flags) {
   const validation::StudyResult result =
       validation::run_study(spec, options, validation::builtin_evaluators());
   if (!result.is_root) return;
-  std::printf("study %s: %d cells (%d resumed, %d computed, %d failed) in %.2f s", spec.name.c_str(),
-              result.cells_total, result.cells_resumed, result.cells_computed, result.cells_failed,
-              result.wall_s);
+  std::printf("study %s: %d cells (%d resumed, %d computed, %d failed) in %.2f s",
+              spec.name.c_str(), result.cells_total, result.cells_resumed, result.cells_computed,
+              result.cells_failed, result.wall_s);
   if (result.ranks > 1) std::printf(" on %d MPI ranks", result.ranks);
   std::printf("; store %s\n", options.store_path.c_str());
   if (!flags.csv.empty()) {

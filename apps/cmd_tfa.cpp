@@ -61,8 +61,8 @@ namespace {
 
 struct TfaCommandOptions {
   std::string design = "whole", mapping = "eq48";
-  std::string trial_path, angles, forces, onset, method = "modal", baseline_path,
-      subject_path, window = "kaiser:3", output_path, spectrogram_path;
+  std::string trial_path, angles, forces, onset, method = "modal", baseline_path, subject_path,
+                                                 window = "kaiser:3", output_path, spectrogram_path;
   double sample_rate_hz = 0.0;  // --fs, Hz: for files without a t column (0: from t)
   bool no_shape_refit = false;
   estimators::TfaOptions tfa;
@@ -107,9 +107,9 @@ models::ArmParameters read_subject(const std::string& path) {
   }
   models::ArmParameters arm;
   const std::pair<const char*, double*> fields[] = {
-      {"l1_m", &arm.l1_m}, {"r1_m", &arm.r1_m}, {"m1_kg", &arm.m1_kg},
-      {"iz1_kg_m2", &arm.iz1_kg_m2}, {"l2_m", &arm.l2_m}, {"r2_m", &arm.r2_m},
-      {"m2_kg", &arm.m2_kg}, {"iz2_kg_m2", &arm.iz2_kg_m2}};
+      {"l1_m", &arm.l1_m},           {"r1_m", &arm.r1_m},          {"m1_kg", &arm.m1_kg},
+      {"iz1_kg_m2", &arm.iz1_kg_m2}, {"l2_m", &arm.l2_m},          {"r2_m", &arm.r2_m},
+      {"m2_kg", &arm.m2_kg},         {"iz2_kg_m2", &arm.iz2_kg_m2}};
   for (const auto& [key, value] : spec.items()) {
     double* target = nullptr;
     for (const auto& [name, field] : fields) {
@@ -175,8 +175,7 @@ std::string spectrogram_csv(const estimators::ReassignedSpectrogram& sg,
         const double p = std::norm(sg.stft[c](k, m));
         if (p < 1e-6 * peak) continue;
         out << sg.time_s(m) << ',' << sg.frequency_hz(k) << ',' << names[c] << ',' << p << ','
-            << sg.reassigned_time_s[c](k, m) << ',' << sg.reassigned_frequency_hz[c](k, m)
-            << '\n';
+            << sg.reassigned_time_s[c](k, m) << ',' << sg.reassigned_frequency_hz[c](k, m) << '\n';
       }
     }
   }
@@ -225,18 +224,22 @@ void run(TfaCommandOptions cli) {
 
   nlohmann::json out;
   out["method"] = estimators::to_string(o.method);
-  out["options"] = {
-      {"angles", o.deviation.angle_channels},
-      {"forces", o.deviation.force_channels},
-      {"onset", cli.onset},
-      {"baseline", cli.baseline_path},
-      {"subject", cli.subject_path},
-      {"arm",
-       {{"l1_m", o.arm.l1_m}, {"r1_m", o.arm.r1_m}, {"m1_kg", o.arm.m1_kg},
-        {"iz1_kg_m2", o.arm.iz1_kg_m2}, {"l2_m", o.arm.l2_m}, {"r2_m", o.arm.r2_m},
-        {"m2_kg", o.arm.m2_kg}, {"iz2_kg_m2", o.arm.iz2_kg_m2}}},
-      {"pulse_s", o.deviation.pulse_s},
-      {"decimation", r.decimation}};
+  out["options"] = {{"angles", o.deviation.angle_channels},
+                    {"forces", o.deviation.force_channels},
+                    {"onset", cli.onset},
+                    {"baseline", cli.baseline_path},
+                    {"subject", cli.subject_path},
+                    {"arm",
+                     {{"l1_m", o.arm.l1_m},
+                      {"r1_m", o.arm.r1_m},
+                      {"m1_kg", o.arm.m1_kg},
+                      {"iz1_kg_m2", o.arm.iz1_kg_m2},
+                      {"l2_m", o.arm.l2_m},
+                      {"r2_m", o.arm.r2_m},
+                      {"m2_kg", o.arm.m2_kg},
+                      {"iz2_kg_m2", o.arm.iz2_kg_m2}}},
+                    {"pulse_s", o.deviation.pulse_s},
+                    {"decimation", r.decimation}};
   if (o.method == estimators::TfaMethod::modal) {
     const estimators::DampedModesOptions& mo = o.modes;
     out["options"].update({{"decimate_hz", mo.decimate_hz},
@@ -269,11 +272,10 @@ void run(TfaCommandOptions cli) {
                            {"shape_refit", r.modes.shape_refit},
                            {"mapping", estimators::to_string(o.modal_parameters.mapping)}});
     // The roughness at each knot when it varies along the record (null: one roughness).
-    out["track_roughness_local"] =
-        r.modes.roughness_sd.size() == 0
-            ? nlohmann::json(nullptr)
-            : nlohmann::json{{"t_s", series(r.modes.roughness_t_s)},
-                             {"sd", series(r.modes.roughness_sd)}};
+    out["track_roughness_local"] = r.modes.roughness_sd.size() == 0
+                                       ? nlohmann::json(nullptr)
+                                       : nlohmann::json{{"t_s", series(r.modes.roughness_t_s)},
+                                                        {"sd", series(r.modes.roughness_sd)}};
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
     out["converged"] = r.modes.converged;
     out["iterations"] = r.modes.iterations;
@@ -358,7 +360,8 @@ void run(TfaCommandOptions cli) {
   for (Eigen::Index j = 0; j < r.modal.omega_rad_per_s.cols(); ++j) {
     if (o.method == estimators::TfaMethod::modal) {
       const auto& track = r.modes.modes[j];
-      valid.push_back(std::vector<bool>(track.valid.data(), track.valid.data() + track.valid.size()));
+      valid.push_back(
+          std::vector<bool>(track.valid.data(), track.valid.data() + track.valid.size()));
       anr.push_back(series(track.anr_db));
     } else {
       std::vector<bool> ok(frames, false);  // the ridge frames are the modal-analysis frames
@@ -523,8 +526,7 @@ void add_tfa_command(CLI::App& app) {
       ->capture_default_str();
   sub->add_flag("--analytic", o.deviation.analytic,
                 "analyse the analytic signals (FFT Hilbert transform) of the deviations");
-  sub->add_option("--decimation", o.decimation,
-                  "keep every D-th sample before the STFT (0: auto)")
+  sub->add_option("--decimation", o.decimation, "keep every D-th sample before the STFT (0: auto)")
       ->capture_default_str();
   sub->add_option("-o,--output", cli->output_path, "output JSON file (default: stdout)");
   sub->add_option("--spectrogram", cli->spectrogram_path,

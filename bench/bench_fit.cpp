@@ -42,8 +42,9 @@ Eigen::MatrixXd m2(double a, double b, double c) {
 std::vector<std::pair<std::string, Truth>> truths() {
   const Eigen::MatrixXd inertia = m2(1.8, 0.3, 1.2), c = m2(15, 3, 10), k = m2(500, 100, 300);
   return {{"kv", {sf::LumpedModel::kelvin_voigt, {inertia, c, k}}},
-          {"pt", {sf::LumpedModel::poynting_thomson,
-                  {inertia, m2(1750, 250, 1000), m2(350, 50, 200), m2(40, 6, 25)}}},
+          {"pt",
+           {sf::LumpedModel::poynting_thomson,
+            {inertia, m2(1750, 250, 1000), m2(350, 50, 200), m2(40, 6, 25)}}},
           {"duffing", {sf::LumpedModel::duffing, {inertia, c, k, m2(2e6, 0, 1e6)}}}};
 }
 
@@ -65,8 +66,8 @@ Eigen::MatrixXd forces(int samples, double rate_hz, std::uint64_t seed) {
   return f;
 }
 
-void write(const fs::path& path, const Eigen::MatrixXd& columns, const std::vector<std::string>& names,
-           double rate_hz) {
+void write(const fs::path& path, const Eigen::MatrixXd& columns,
+           const std::vector<std::string>& names, double rate_hz) {
   stiffid::data::Trial t;
   t.sample_rate_hz = rate_hz;
   t.source = path.string();
@@ -82,8 +83,8 @@ void make(const fs::path& dir, double duration_s, double rate_hz) {
     const Eigen::MatrixXd f = forces(samples, rate_hz, seed++);
     const Eigen::VectorXd theta = sf::matrices_to_theta(truth.model, truth.matrices);
     Eigen::VectorXd z0 = Eigen::VectorXd::Zero(sf::state_size(truth.model, 2));
-    const Eigen::MatrixXd x = sf::simulate_lumped(truth.model, theta, z0, f, rate_hz,
-                                                  sf::InputHold::first_order, 8);
+    const Eigen::MatrixXd x =
+        sf::simulate_lumped(truth.model, theta, z0, f, rate_hz, sf::InputHold::first_order, 8);
     Eigen::MatrixXd cols(samples, 4);
     cols << f, x;
     write(dir / (name + ".csv"), cols, {"f1", "f2", "x1", "x2"}, rate_hz);
@@ -104,9 +105,9 @@ void make(const fs::path& dir, double duration_s, double rate_hz) {
       for (int i = 250; i < 450; ++i) f.row(i) = 5.0 * u.transpose();
       // the pulse is a step: simulate from the onset with the force held (ZOH) per piece
       Eigen::MatrixXd x = Eigen::MatrixXd::Zero(n, 2);
-      x.bottomRows(n - 250) = sf::simulate_lumped(kv.model, theta, Eigen::VectorXd::Zero(4),
-                                                  f.bottomRows(n - 250), 1000.0,
-                                                  sf::InputHold::zero_order, 8);
+      x.bottomRows(n - 250) =
+          sf::simulate_lumped(kv.model, theta, Eigen::VectorXd::Zero(4), f.bottomRows(n - 250),
+                              1000.0, sf::InputHold::zero_order, 8);
       Eigen::MatrixXd cols(n, 7);
       for (int i = 0; i < n; ++i) {
         const Eigen::Vector2d hand = Eigen::Vector2d(0.4, 0.0) + x.row(i).transpose();
@@ -134,7 +135,8 @@ int fit(const fs::path& dir, const std::string& which, double segment_s) {
   for (const auto& [name, truth] : truths()) {
     if (which != "all" && which != name) continue;
     const auto t0 = std::chrono::steady_clock::now();
-    const stiffid::data::Trial trial = stiffid::data::read_trial_csv((dir / (name + ".csv")).string());
+    const stiffid::data::Trial trial =
+        stiffid::data::read_trial_csv((dir / (name + ".csv")).string());
     sf::LumpedFitOptions o;
     o.model = truth.model;
     o.starts = 1;
@@ -142,8 +144,8 @@ int fit(const fs::path& dir, const std::string& which, double segment_s) {
     const std::vector<sf::MatrixParameter> layout = sf::model_matrices(truth.model);
     for (std::size_t m = 0; m < layout.size(); ++m) {
       const double d = 1.3 * truth.matrices[m](0, 0);  // box centre 1.3 x truth (first diagonal)
-      o.ranges[layout[m].name] = layout[m].diagonal ? sf::StartRange{0.0, 2.0 * d}
-                                                    : sf::StartRange{d / 2.0, d * 2.0};
+      o.ranges[layout[m].name] =
+          layout[m].diagonal ? sf::StartRange{0.0, 2.0 * d} : sf::StartRange{d / 2.0, d * 2.0};
     }
     const sf::LumpedFitResult r = sf::fit_lumped(trial, {"f1", "f2"}, {"x1", "x2"}, o);
     double worst = 0.0;
@@ -151,9 +153,10 @@ int fit(const fs::path& dir, const std::string& which, double segment_s) {
       worst = std::max(worst, (r.parameters[m].value - truth.matrices[m]).cwiseAbs().maxCoeff() /
                                   truth.matrices[m].cwiseAbs().maxCoeff());
     }
-    std::printf("fit %-8s %6.3f s  iterations %3d  substeps %d  segments %d  max rel error %.2e  %s\n",
-                name.c_str(), seconds_since(t0), r.iterations, r.substeps, r.segments, worst,
-                r.status.ok ? "converged" : r.status.message.c_str());
+    std::printf(
+        "fit %-8s %6.3f s  iterations %3d  substeps %d  segments %d  max rel error %.2e  %s\n",
+        name.c_str(), seconds_since(t0), r.iterations, r.substeps, r.segments, worst,
+        r.status.ok ? "converged" : r.status.message.c_str());
     failures += r.status.ok ? 0 : 1;
   }
   return failures == 0 ? 0 : 1;
@@ -195,7 +198,8 @@ int main(int argc, char** argv) {
       make(dir, argc > 3 ? std::stod(argv[3]) : 20.0, argc > 4 ? std::stod(argv[4]) : 1000.0);
       return 0;
     }
-    if (cmd == "fit") return fit(dir, argc > 3 ? argv[3] : "all", argc > 4 ? std::stod(argv[4]) : 0.0);
+    if (cmd == "fit")
+      return fit(dir, argc > 3 ? argv[3] : "all", argc > 4 ? std::stod(argv[4]) : 0.0);
     if (cmd == "regress") return regress(dir);
   } catch (const std::exception& e) {
     std::cerr << "bench_fit: " << e.what() << '\n';

@@ -5,8 +5,8 @@
 //
 // Usage: bench_modal [REPEATS [DECAY_TIE]]   (default 1 and the default decay tie, chosen from the
 // data; 0 = none). Prints the median, minimum and maximum wall time of one fit over the repeats,
-// the Levenberg-Marquardt iterations, roughness and tie chosen, and k11 as a sanity check. Time the whole process from
-// outside as well (e.g. /usr/bin/time -v bench_modal 1).
+// the Levenberg-Marquardt iterations, roughness and tie chosen, and k11 as a sanity check. Time the
+// whole process from outside as well (e.g. /usr/bin/time -v bench_modal 1).
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
@@ -41,10 +41,11 @@ Eigen::MatrixXd trial(const Eigen::Matrix2d& m, const Eigen::Matrix2d& k, const 
   for (int i = 0; i < s; ++i) {
     const double tau = i / rate_hz - 2.52;
     if (tau < 0.0) continue;
-    q.row(i) = (eig.eigenvectors() * (eig.eigenvalues().array() * tau).exp().matrix().cwiseProduct(coef))
-                   .head<2>()
-                   .real()
-                   .transpose();
+    q.row(i) =
+        (eig.eigenvectors() * (eig.eigenvalues().array() * tau).exp().matrix().cwiseProduct(coef))
+            .head<2>()
+            .real()
+            .transpose();
   }
   const double rms = std::sqrt(q.bottomRows(s / 2).squaredNorm() / double(s));
   std::mt19937_64 rng(42);
@@ -87,9 +88,10 @@ int main(int argc, char** argv) {
     tie = modes.decay_tie;
   }
   std::sort(seconds.begin(), seconds.end());
-  std::printf("bench_modal: %d repeats, median %.1f ms, min %.1f ms, max %.1f ms; %d iterations, "
-              "roughness %g, decay tie %g; k11(3 s) = %.2f N m/rad (true 35)\n",
-              repeats, 1e3 * seconds[seconds.size() / 2], 1e3 * seconds.front(),
-              1e3 * seconds.back(), iterations, roughness, tie, k11);
+  std::printf(
+      "bench_modal: %d repeats, median %.1f ms, min %.1f ms, max %.1f ms; %d iterations, "
+      "roughness %g, decay tie %g; k11(3 s) = %.2f N m/rad (true 35)\n",
+      repeats, 1e3 * seconds[seconds.size() / 2], 1e3 * seconds.front(), 1e3 * seconds.back(),
+      iterations, roughness, tie, k11);
   return 0;
 }

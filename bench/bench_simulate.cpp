@@ -22,7 +22,8 @@ double median_ms(int repetitions, const std::function<void()>& run) {
   for (int k = 0; k < repetitions; ++k) {
     const auto t0 = std::chrono::steady_clock::now();
     run();
-    times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    times.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
   std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
   return times[times.size() / 2];

@@ -1,5 +1,7 @@
 #include "data/csv.hpp"
 
+#include <fast_float/fast_float.h>
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -10,12 +12,10 @@
 #include <sstream>
 #include <string_view>
 
-#include <fast_float/fast_float.h>
-
 #include "data/error.hpp"
-#include "data/text_input.hpp"
 #include "data/output.hpp"
 #include "data/parallel.hpp"
+#include "data/text_input.hpp"
 
 namespace stiffid::data {
 namespace {
@@ -404,7 +404,8 @@ Trial build_trial(NumericCsv&& csv, const std::string& source, const TrialCsvOpt
     throw InputError(source + ":1: no time column '" + options.time_column +
                      "'; give the sampling rate (--fs HZ)");
   }
-  if (rows < 2) throw InputError(source + ": " + std::to_string(rows) + " data rows, need at least 2");
+  if (rows < 2)
+    throw InputError(source + ": " + std::to_string(rows) + " data rows, need at least 2");
 
   Trial trial;
   trial.source = source;
@@ -433,10 +434,9 @@ Trial build_trial(NumericCsv&& csv, const std::string& source, const TrialCsvOpt
     const double deviation = std::abs(time(r) - (time(0) + r * step));
     if (deviation > options.time_tolerance * step) {
       std::ostringstream msg;
-      msg << at(source, lines[r], time_col) << ": non-uniform sampling: t = "
-          << shortest(time(r)) << " s is " << deviation / step
-          << " steps off the uniform grid of step " << step << " s (tolerance "
-          << options.time_tolerance << " step)";
+      msg << at(source, lines[r], time_col) << ": non-uniform sampling: t = " << shortest(time(r))
+          << " s is " << deviation / step << " steps off the uniform grid of step " << step
+          << " s (tolerance " << options.time_tolerance << " step)";
       throw InputError(msg.str());
     }
   }

@@ -12,10 +12,10 @@ namespace stiffid::data {
 
 /// A CSV file as text cells. Row r of `cells` came from line `line_numbers[r]` of `source`.
 struct CsvTable {
-  std::string source;                            ///< file path (or a label) for messages
-  std::vector<std::string> header;               ///< [C] column names as written
-  std::vector<std::vector<std::string>> cells;   ///< [R][C] cells, trimmed, quotes removed
-  std::vector<int> line_numbers;                 ///< [R] 1-based line of each row
+  std::string source;                           ///< file path (or a label) for messages
+  std::vector<std::string> header;              ///< [C] column names as written
+  std::vector<std::vector<std::string>> cells;  ///< [R][C] cells, trimmed, quotes removed
+  std::vector<int> line_numbers;                ///< [R] 1-based line of each row
 
   int column_count() const { return static_cast<int>(header.size()); }
   int row_count() const { return static_cast<int>(cells.size()); }
@@ -36,11 +36,11 @@ CsvTable parse_csv(const std::string& text, const std::string& source);
 CsvTable read_csv(const std::string& path);
 
 struct TrialCsvOptions {
-  std::string time_column = "t";   ///< column holding time in s; absent -> sample_rate_hz is used
-  double sample_rate_hz = 0.0;     ///< Hz; required when the file has no time column, and when
-                                   ///< given with a time column it must agree with it
-  double time_tolerance = 1e-3;    ///< largest deviation of a time stamp from the uniform grid, as
-                                   ///< a fraction of the sampling step
+  std::string time_column = "t";  ///< column holding time in s; absent -> sample_rate_hz is used
+  double sample_rate_hz = 0.0;    ///< Hz; required when the file has no time column, and when
+                                  ///< given with a time column it must agree with it
+  double time_tolerance = 1e-3;   ///< largest deviation of a time stamp from the uniform grid, as
+                                  ///< a fraction of the sampling step
 };
 
 /// Parses a trial from CSV text: a header row, then every column except time becomes a channel. A

@@ -28,7 +28,8 @@ int Trial::index(const std::string& name) const {
 
 Eigen::MatrixXd Trial::columns(const std::vector<std::string>& channel_names) const {
   Eigen::MatrixXd out(samples.rows(), static_cast<Eigen::Index>(channel_names.size()));
-  for (size_t j = 0; j < channel_names.size(); ++j) out.col(j) = samples.col(index(channel_names[j]));
+  for (size_t j = 0; j < channel_names.size(); ++j)
+    out.col(j) = samples.col(index(channel_names[j]));
   return out;
 }
 
@@ -51,8 +52,8 @@ Trial::ColumnView::ColumnView(const Trial& trial, const std::vector<std::string>
                               int first)
     : copy_(first < 0 ? trial.columns(channel_names) : Eigen::MatrixXd()),
       block_(first < 0 ? trial.samples.leftCols(0)
-                       : trial.samples.middleCols(first,
-                                                  static_cast<Eigen::Index>(channel_names.size()))) {}
+                       : trial.samples.middleCols(
+                             first, static_cast<Eigen::Index>(channel_names.size()))) {}
 
 Eigen::VectorXd Trial::time_s() const {
   return Eigen::VectorXd::LinSpaced(sample_count(), 0.0, sample_count() - 1.0) / sample_rate_hz +

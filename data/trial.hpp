@@ -8,12 +8,12 @@
 namespace stiffid::data {
 
 struct Trial {
-  double sample_rate_hz = 0.0;         ///< uniform sampling rate, Hz
-  double start_time_s = 0.0;           ///< time of the first sample, s
-  std::vector<std::string> names;      ///< [C] channel names, unique
-  std::vector<std::string> units;      ///< [C] channel units ("" when unknown), e.g. "N", "m", "rad"
-  Eigen::MatrixXd samples;             ///< (S x C) one column per channel
-  std::string source;                  ///< where the trial came from (file path), for messages
+  double sample_rate_hz = 0.0;     ///< uniform sampling rate, Hz
+  double start_time_s = 0.0;       ///< time of the first sample, s
+  std::vector<std::string> names;  ///< [C] channel names, unique
+  std::vector<std::string> units;  ///< [C] channel units ("" when unknown), e.g. "N", "m", "rad"
+  Eigen::MatrixXd samples;         ///< (S x C) one column per channel
+  std::string source;              ///< where the trial came from (file path), for messages
 
   int sample_count() const { return static_cast<int>(samples.rows()); }
   int channel_count() const { return static_cast<int>(samples.cols()); }

@@ -33,7 +33,7 @@ void givens(RowMatrix& g, int p, int q, int from, int len) {
 BlockToeplitzCholesky::BlockToeplitzCholesky(
     const Eigen::Ref<const Eigen::MatrixXd>& first_block_row) {
   const int blocks_n = static_cast<int>(first_block_row.rows());  // N
-  const int n = static_cast<int>(first_block_row.cols());          // N L
+  const int n = static_cast<int>(first_block_row.cols());         // N L
   if (blocks_n < 1 || n < blocks_n || n % blocks_n != 0) return;
   const int lags = n / blocks_n;
   const Eigen::LLT<Eigen::MatrixXd> leading(first_block_row.leftCols(blocks_n));

@@ -156,8 +156,9 @@ Eigen::MatrixXd BlockedSignals::correlate(const std::vector<ChannelPair>& pairs)
       const Eigen::MatrixXcd p_spectra = first_fft.forward(p_block);
       const Eigen::MatrixXcd q_spectra = second_fft.forward(q_block);
       for (int c = 0; c < count; ++c) {
-        sums.col(c) += p_spectra.col(position(firsts, pairs[c].first)).conjugate().cwiseProduct(
-            q_spectra.col(position(seconds, pairs[c].second)));
+        sums.col(c) += p_spectra.col(position(firsts, pairs[c].first))
+                           .conjugate()
+                           .cwiseProduct(q_spectra.col(position(seconds, pairs[c].second)));
       }
     }
   });
@@ -197,7 +198,7 @@ Eigen::MatrixXd BlockedSignals::convolve(const Eigen::Ref<const Eigen::MatrixXd>
     Eigen::MatrixXd x_window(n, inputs);
     Eigen::MatrixXcd products(input_fft.bins(), outputs);
     for (int b = begin; b < end; ++b) {
-      const int t0 = b * block;                 // first output sample of the block
+      const int t0 = b * block;  // first output sample of the block
       const int length = std::min(block, s - t0);
       const long w0 = static_cast<long>(t0) - first_lag - (taps - 1);  // x index of window row 0
       const long from = std::max(w0, 0L);

@@ -22,8 +22,8 @@ struct ChannelPair {
 };
 
 struct CorrelationOptions {
-  int max_lag = 0;           ///< L, samples (>= 0): lags -L..L are returned
-  bool remove_mean = true;   ///< subtract each channel's mean before correlating
+  int max_lag = 0;          ///< L, samples (>= 0): lags -L..L are returned
+  bool remove_mean = true;  ///< subtract each channel's mean before correlating
 };
 
 /// Smallest FFT length >= `minimum` whose prime factors are 2, 3, 5 and 7 only (fast in FFTW).

@@ -13,27 +13,39 @@ namespace {
 // B_{s+r} equals piece r.
 double piece(int r, double u) {
   switch (r) {
-    case 0: return (1 - u) * (1 - u) * (1 - u) / 6.0;
-    case 1: return (3 * u * u * u - 6 * u * u + 4) / 6.0;
-    case 2: return (-3 * u * u * u + 3 * u * u + 3 * u + 1) / 6.0;
-    default: return u * u * u / 6.0;
+    case 0:
+      return (1 - u) * (1 - u) * (1 - u) / 6.0;
+    case 1:
+      return (3 * u * u * u - 6 * u * u + 4) / 6.0;
+    case 2:
+      return (-3 * u * u * u + 3 * u * u + 3 * u + 1) / 6.0;
+    default:
+      return u * u * u / 6.0;
   }
 }
 double piece_derivative(int r, double u) {  // d/du
   switch (r) {
-    case 0: return -(1 - u) * (1 - u) / 2.0;
-    case 1: return (3 * u * u - 4 * u) / 2.0;
-    case 2: return (-3 * u * u + 2 * u + 1) / 2.0;
-    default: return u * u / 2.0;
+    case 0:
+      return -(1 - u) * (1 - u) / 2.0;
+    case 1:
+      return (3 * u * u - 4 * u) / 2.0;
+    case 2:
+      return (-3 * u * u + 2 * u + 1) / 2.0;
+    default:
+      return u * u / 2.0;
   }
 }
 double piece_integral(int r, double u) {  // int_0^u piece(r, v) dv
   const double u2 = u * u, u3 = u2 * u, u4 = u3 * u;
   switch (r) {
-    case 0: return (1 - std::pow(1 - u, 4)) / 24.0;
-    case 1: return (0.75 * u4 - 2 * u3 + 4 * u) / 6.0;
-    case 2: return (-0.75 * u4 + u3 + 1.5 * u2 + u) / 6.0;
-    default: return u4 / 24.0;
+    case 0:
+      return (1 - std::pow(1 - u, 4)) / 24.0;
+    case 1:
+      return (0.75 * u4 - 2 * u3 + 4 * u) / 6.0;
+    case 2:
+      return (-0.75 * u4 + u3 + 1.5 * u2 + u) / 6.0;
+    default:
+      return u4 / 24.0;
   }
 }
 constexpr double kPieceArea[4] = {1.0 / 24, 11.0 / 24, 11.0 / 24, 1.0 / 24};
@@ -43,8 +55,7 @@ constexpr double kPieceArea[4] = {1.0 / 24, 11.0 / 24, 11.0 / 24, 1.0 / 24};
 UniformCubicBspline::UniformCubicBspline(double length_s, double target_spacing_s) {
   if (!(length_s > 0.0) || !(target_spacing_s > 0.0) || !std::isfinite(length_s))
     throw InputError("cubic B-spline: length and knot spacing must be positive, got " +
-                     number_text(length_s) + " s and " + number_text(target_spacing_s) +
-                     " s");
+                     number_text(length_s) + " s and " + number_text(target_spacing_s) + " s");
   spans_ = std::max(1, static_cast<int>(std::lround(length_s / target_spacing_s)));
   spacing_s_ = length_s / spans_;
 }

@@ -17,9 +17,9 @@ class UniformCubicBspline {
   /// spans = max(1, round(length_s / target_spacing_s)); spacing = length_s / spans.
   UniformCubicBspline(double length_s, double target_spacing_s);
 
-  int size() const { return spans_ + 3; }   ///< number of basis functions
-  int spans() const { return spans_; }      ///< number of knot spans
-  double spacing_s() const { return spacing_s_; }  ///< knot spacing, s
+  int size() const { return spans_ + 3; }                  ///< number of basis functions
+  int spans() const { return spans_; }                     ///< number of knot spans
+  double spacing_s() const { return spacing_s_; }          ///< knot spacing, s
   double length_s() const { return spacing_s_ * spans_; }  ///< interval length, s
 
   /// B_m(t_s): (T x size), dimensionless (partition of unity on the interval).

@@ -90,8 +90,7 @@ Prepared prepare(const Eigen::Ref<const Eigen::MatrixXd>& x, double rate_hz, dou
   const int onset = static_cast<int>(std::ceil((onset_s - start_s) * rate_hz - 1e-9));
   if (onset < 0 || onset >= s)
     throw InputError("modal fit: onset " + number_text(onset_s) + " s is outside the record [" +
-                     number_text(start_s) + ", " + number_text(start_s + s / rate_hz) +
-                     ") s");
+                     number_text(start_s) + ", " + number_text(start_s + s / rate_hz) + ") s");
   auto up = [d](int i) { return i >= 0 ? (i + d - 1) / d : -((-i) / d); };  // ceil(i / d)
   const int noise_first =
       up(std::max(h, onset - static_cast<int>(std::lround(o.noise_window_s * rate_hz)) + h));
@@ -223,7 +222,8 @@ class VpProblem {
     e.resize(ig_.rows(), modes_);
     for (int j = 0; j < modes_; ++j) {
       const Eigen::VectorXd re = ig_ * Eigen::Map<const Eigen::VectorXd>(theta + 2 * j * m, m);
-      const Eigen::VectorXd im = ig_ * Eigen::Map<const Eigen::VectorXd>(theta + (2 * j + 1) * m, m);
+      const Eigen::VectorXd im =
+          ig_ * Eigen::Map<const Eigen::VectorXd>(theta + (2 * j + 1) * m, m);
       if (!re.allFinite() || !im.allFinite() || re.cwiseAbs().maxCoeff() > 600.0) return false;
       for (Eigen::Index i = 0; i < re.size(); ++i) e(i, j) = std::exp(Complex(re(i), im(i)));
     }
@@ -394,10 +394,10 @@ class VpProblem {
   std::vector<LinearTerm> terms_;
   std::vector<std::pair<int, int>> pairs_;  // linear terms whose difference is penalized
   double sqrt_weight_;
-  double sqrt_phase_;  // sqrt of the phase factor of the shape penalty (design())
+  double sqrt_phase_;      // sqrt of the phase factor of the shape penalty (design())
   Eigen::MatrixXd prior_;  // (R x 2 n M) roughness prior rows on the track coefficients
   TrackTies ties_;
-  int real_;  // R real terms
+  int real_;     // R real terms
   int offsets_;  // C constant offsets (whitened), or 0
   int so_mode_;  // mode j whose second-order terms are fitted (exp(2 Re Phi_j), exp(2 Phi_j)), or
                  // -1
@@ -507,7 +507,8 @@ Eigen::VectorXd start_tracks(const Prepared& p, const UniformCubicBspline& track
       const Eigen::VectorXcd white = p.whiten * w.amplitude.row(j).transpose();
       const double anr = 0.5 * white.squaredNorm() * std::exp(2.0 * w.alpha_per_s(j) * half_s);
       const double ratio = w.omega_rad_per_s(j) / last_omega(j);
-      if (anr < 4.0 || ratio < 0.7 || ratio > 1.4 || std::abs(w.alpha_per_s(j)) > w.omega_rad_per_s(j))
+      if (anr < 4.0 || ratio < 0.7 || ratio > 1.4 ||
+          std::abs(w.alpha_per_s(j)) > w.omega_rad_per_s(j))
         continue;
       // Nearer another mode's track than its own: the window lost mode j (a weak mode in the
       // noise) and its pole j is another mode's.
@@ -806,9 +807,9 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
   const int needed = matrix_pencil_min_samples(modes, real);
   if (windows < 1 || width < needed) {
     throw InputError("modal fit: sliding_window_s = " + number_text(options.sliding_window_s) +
-                     " s needs " + std::to_string(std::max(width, needed)) +
-                     " samples at " + number_text(p.rate_hz) + " Hz and fewer than the " +
-                     std::to_string(n) + " fitted ones");
+                     " s needs " + std::to_string(std::max(width, needed)) + " samples at " +
+                     number_text(p.rate_hz) + " Hz and fewer than the " + std::to_string(n) +
+                     " fitted ones");
   }
   const double dt = 1.0 / p.rate_hz, centre = half * dt;
   // Running integrals from the window's first sample of the basis 1, tau - centre (s, s^2).
@@ -1128,8 +1129,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     const Eigen::ArrayXXd omega = frequency_tracks(at);
     for (int j = 0; j < modes; ++j)
       for (int l = j + 1; l < modes; ++l) {
-        const Eigen::ArrayXd relative_gap = (omega.col(j) - omega.col(l)).abs() /
-                                            (0.5 * (omega.col(j).abs() + omega.col(l).abs()));
+        const Eigen::ArrayXd relative_gap =
+            (omega.col(j) - omega.col(l)).abs() / (0.5 * (omega.col(j).abs() + omega.col(l).abs()));
         if (relative_gap.maxCoeff() < options.min_mode_separation) return true;
       }
     return false;
@@ -1159,10 +1160,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // when it is not usable, merged or not taken.
   auto try_candidate = [&](double roughness, const TrackTies& candidate_ties, bool with_dof,
                            const Eigen::VectorXd& start, auto&& accept, bool restart = false) {
-    auto problem = std::make_unique<VpProblem>(
-        p, modes, integrals, design.functions, design.terms, design.pairs, design.weight,
-        prior_rows(track, modes, roughness), candidate_ties, real, options.offsets, so_mode,
-        design.phase_factor);
+    auto problem = std::make_unique<VpProblem>(p, modes, integrals, design.functions, design.terms,
+                                               design.pairs, design.weight,
+                                               prior_rows(track, modes, roughness), candidate_ties,
+                                               real, options.offsets, so_mode, design.phase_factor);
     Eigen::VectorXd candidate = start;
     StageOutcome o;
     // Merged modes (`merged`) are refused once a fit has been taken (something to fall back on).
@@ -1176,9 +1177,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     // cost: the same choice at any thread count (the continuation's on a tie).
     auto take_cold = [&](const StageOutcome& from_cold, const Eigen::VectorXd& other) {
       const bool other_merged = is_merged(from_cold, other);
-      const bool prefer = from_cold.usable &&
-                          (!o.usable || (candidate_merged != other_merged ? candidate_merged
-                                                                         : from_cold.cost < o.cost));
+      const bool prefer =
+          from_cold.usable &&
+          (!o.usable ||
+           (candidate_merged != other_merged ? candidate_merged : from_cold.cost < o.cost));
       if (prefer) {
         o = from_cold;
         candidate = other;
@@ -1388,10 +1390,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       StageOutcome o;
       // sd stays the SDs of the last fit (problem) when the sweeps end.
       for (int sweep = 1;; ++sweep) {
-        problem = std::make_unique<VpProblem>(p, modes, integrals, design.functions, design.terms,
-                                              design.pairs, design.weight,
-                                              prior_rows(track, modes, sd), ties, real,
-                                              options.offsets, so_mode, design.phase_factor);
+        problem =
+            std::make_unique<VpProblem>(p, modes, integrals, design.functions, design.terms,
+                                        design.pairs, design.weight, prior_rows(track, modes, sd),
+                                        ties, real, options.offsets, so_mode, design.phase_factor);
         o = solve(*problem, candidate, options.max_iterations);
         result.iterations += o.iterations;
         if (!o.usable || sweep == 10) break;
@@ -1501,8 +1503,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       double first_rss = 0.0, first_dof = 0.0;
       if (local_knots > 0.0 && fit_size(*first_problem, first_theta, true, first_rss, first_dof))
         first_size = std::make_pair(first_rss, first_dof + local_knots);
-      take_refit = lower_bic(*stage1, theta, *first_problem, first_theta, first_size) &&
-                   !too_close(theta);
+      take_refit =
+          lower_bic(*stage1, theta, *first_problem, first_theta, first_size) && !too_close(theta);
     }
     if (take_refit) {
       final_problem = std::move(stage1);
@@ -1586,7 +1588,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     mt.log_envelope_rate_per_s.resize(n, c);
     mt.anr_db.resize(n);
     mt.valid.resize(n);
-    const Eigen::VectorXd log_growth = integrals * ca;  // Re Phi_j
+    const Eigen::VectorXd log_growth = integrals * ca;      // Re Phi_j
     const Eigen::VectorXd phase_integral = integrals * cw;  // Im Phi_j, rad
     Eigen::VectorXd shape_phase(c);
     for (int i = 0; i < n; ++i) {
@@ -1598,9 +1600,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
         shape_phase(k) = phase;
         mt.phase_rad(i, k) = phase + phase_integral(i);
         mt.log_envelope_rate_per_s(i, k) =
-            mt.alpha_per_s(i) + (std::norm(a) > 0.0 ? (shape_dot(i, k) * std::conj(a)).real() /
-                                                          std::norm(a)
-                                                    : 0.0);
+            mt.alpha_per_s(i) +
+            (std::norm(a) > 0.0 ? (shape_dot(i, k) * std::conj(a)).real() / std::norm(a) : 0.0);
         result.fitted(i, k) += (a * e(i, j)).real();
       }
       mt.anr_db(i) = 10.0 * std::log10(0.5 * w.row(i).squaredNorm() * std::norm(e(i, j)));

@@ -45,103 +45,103 @@ inline std::string to_string(ModalDesign design) {
 }
 
 struct DampedModesOptions {
-  int modes = 2;                        ///< n damped oscillations (degrees of freedom)
+  int modes = 2;                            ///< n damped oscillations (degrees of freedom)
   ModalDesign design = ModalDesign::whole;  ///< whole record (b) or sliding windows (a)
-  double sliding_window_s = 0.5;        ///< sliding design: window length, s (centred on each
-                                        ///< fitted sample; the first and last half window of the
-                                        ///< record have no estimate)
-  double decimate_hz = 200.0;           ///< rate after zero-phase low-pass + decimation, Hz; <= 0:
-                                        ///< keep the input rate (no filter)
-  double skip_s = 0.025;                ///< after the onset, not free (the pulse), s; the fit also
-                                        ///< starts the filter half-length later
-  double noise_window_s = 1.0;          ///< before the onset, for the noise covariance, s (the
-                                        ///< tfa pipeline shortens it to what the trial holds)
-  double knot_spacing_s = 0.1;          ///< knot spacing of omega_j(t), alpha_j(t), s
-  double shape_knot_spacing_s = 0.5;    ///< knot spacing of the mode shapes a_jk(t), s; <= 0:
-                                        ///< constant mode shapes
-  double shape_weight = -1.0;           ///< lambda of the penalty on shape changes (whitened
-                                        ///< units, dimensionless); < 0: chosen by GCV, and the
-                                        ///< varying shapes kept only when their BIC beats the
-                                        ///< constant shapes'
-  double shape_phase_factor = 1.0;      ///< the shape penalty on changes of the phases between
-                                        ///< joints, relative to that on the amplitude ratios
-                                        ///< (> 0, dimensionless; 1: alike; docs/tfa_modal.md,
-                                        ///< "Phase factor of the shape penalty")
-  double track_roughness = -1.0;        ///< prior SD of second differences of the omega (rad/s)
-                                        ///< and alpha (1/s) spline coefficients; < 0: from the
-                                        ///< data over 0.003 .. 3 (continuation smooth -> rough),
-                                        ///< rougher only while the BIC rule accepts the extra
-                                        ///< effective parameters (docs/tfa_modal.md)
-  double local_roughness_dof = 1.0;     ///< with track_roughness from the data: nu of the
-                                        ///< Student-t prior (scale from the same grid, by the
-                                        ///< same BIC rule) on the second differences of all
-                                        ///< tracks at each knot, which lets the roughness vary
-                                        ///< along the record: rough where the tracks bend
-                                        ///< (a sharp stiffness change), smooth elsewhere. Tried
-                                        ///< when the continuation chose tracks rougher than the
-                                        ///< smoothest, kept when its BIC is lower (> 0,
-                                        ///< dimensionless; 0: one roughness for the whole
-                                        ///< record; docs/tfa_modal.md, "Local roughness")
-  double lost_track_time_s = 0.3;       ///< design whole: a mode that sank into the noise
-                                        ///< (after its last valid sample its ANR never rises
-                                        ///< above its value there and ends below
-                                        ///< anr_threshold_db) has tracks the data no longer
-                                        ///< determine there; omega_j and alpha_j are continued from its
-                                        ///< last valid sample with their slopes decaying with
-                                        ///< this time constant, s (a damped trend; 0: held
-                                        ///< constant; < 0: the splines' own straight-line
-                                        ///< extrapolation). Those samples stay invalid
-                                        ///< (docs/tfa_modal.md, "Lost modes")
-  double decay_tie = 0.0;               ///< soft tie of the decay tracks, alpha_j(t) = rho_j
-                                        ///< alpha_1(t) with rho_j fitted: prior SD of the
-                                        ///< difference, relative to mode j's mean decay
-                                        ///< (dimensionless); 0 (default): no tie; < 0: from the
-                                        ///< data over 0.3 .. 0.003 (loose -> tight), tighter only
-                                        ///< while the BIC rule accepts the lost fit. Opt-in: it
-                                        ///< helps posture trials whose K and C change by a
-                                        ///< common factor and hurts movement trials
-                                        ///< (docs/tfa_modal.md)
-  double frequency_tie = 0.0;           ///< soft tie of the frequency tracks, omega_j(t) =
-                                        ///< rho_j omega_1(t) with rho_j fitted: prior SD of the
-                                        ///< difference, relative to mode j's mean frequency
-                                        ///< (dimensionless); 0 (default): no tie; < 0: from the
-                                        ///< data as decay_tie (searched after it). Opt-in, as
-                                        ///< decay_tie: it holds when stiffness changes by a
-                                        ///< common factor; it costs k12 on some constant-K
-                                        ///< posture trials and hurts movement trials
-                                        ///< (docs/tfa_modal.md). With a tie taken, the untied
-                                        ///< shape refit is still offered (shape_refit)
-  double init_window_s = 0.5;           ///< sliding matrix-pencil windows for the start, s
-  double anr_threshold_db = 0.0;        ///< validity: amplitude-to-noise ratio at least this, dB
-  double max_frequency_sd_hz = 0.1;     ///< validity: posterior SD of f_j(t) at most this, Hz
-  double max_mode_to_data_db = 20.0;    ///< validity: a mode's power at most this far above the
-                                        ///< whitened data power within +-0.25 s, dB (more: modes
-                                        ///< cancelling each other)
-  double min_mode_separation = 0.01;    ///< validity: two modes whose frequencies differ by less
-                                        ///< than this fraction of their mean (or 2 SDs) are both
-                                        ///< invalid there (merged tracks)
-  int max_iterations = 100;             ///< Levenberg-Marquardt iterations per stage
-  int real_terms = -1;                  ///< R real terms b_k exp(beta_r tau) beside the modes
-                                        ///< (constant rate beta_r, 1/s, and amplitudes); < 0
-                                        ///< (default): the fewest (0 .. 2n) with which the start's
-                                        ///< matrix pencil finds the n oscillatory poles (0 on a
-                                        ///< Kelvin-Voigt arm; Poynting-Thomson trials need them)
-  bool offsets = true;                  ///< design whole: also fit a constant offset per
-                                        ///< channel (linear), the error of the posture the
-                                        ///< deviations are taken from (the 0.2 s pre-onset
-                                        ///< mean), rad
-  bool shape_refit = true;              ///< design whole, shapes and roughness from the data:
-                                        ///< when the constant-shape continuation chose tracks
-                                        ///< rougher than the smoothest, also fit smoother tracks
-                                        ///< with the varying shapes from the start; kept when
-                                        ///< its BIC is lower and its frequencies stay at least
-                                        ///< 1 / (4 shape_knot_spacing_s) Hz apart
-                                        ///< (docs/tfa_modal.md, "Shape refit")
-  bool second_order = true;             ///< design whole: also fit the quadratic distortion of
-                                        ///< the strongest mode j (the arm's Coriolis and
-                                        ///< centripetal terms): s_k exp(2 Re Phi_j) + Re(h_k
-                                        ///< exp(2 Phi_j)) per channel, linear amplitudes, kept
-                                        ///< when they pay by the roughness rule
+  double sliding_window_s = 0.5;            ///< sliding design: window length, s (centred on each
+                                  ///< fitted sample; the first and last half window of the
+                                  ///< record have no estimate)
+  double decimate_hz = 200.0;         ///< rate after zero-phase low-pass + decimation, Hz; <= 0:
+                                      ///< keep the input rate (no filter)
+  double skip_s = 0.025;              ///< after the onset, not free (the pulse), s; the fit also
+                                      ///< starts the filter half-length later
+  double noise_window_s = 1.0;        ///< before the onset, for the noise covariance, s (the
+                                      ///< tfa pipeline shortens it to what the trial holds)
+  double knot_spacing_s = 0.1;        ///< knot spacing of omega_j(t), alpha_j(t), s
+  double shape_knot_spacing_s = 0.5;  ///< knot spacing of the mode shapes a_jk(t), s; <= 0:
+                                      ///< constant mode shapes
+  double shape_weight = -1.0;         ///< lambda of the penalty on shape changes (whitened
+                                      ///< units, dimensionless); < 0: chosen by GCV, and the
+                                      ///< varying shapes kept only when their BIC beats the
+                                      ///< constant shapes'
+  double shape_phase_factor = 1.0;    ///< the shape penalty on changes of the phases between
+                                      ///< joints, relative to that on the amplitude ratios
+                                      ///< (> 0, dimensionless; 1: alike; docs/tfa_modal.md,
+                                      ///< "Phase factor of the shape penalty")
+  double track_roughness = -1.0;      ///< prior SD of second differences of the omega (rad/s)
+                                      ///< and alpha (1/s) spline coefficients; < 0: from the
+                                      ///< data over 0.003 .. 3 (continuation smooth -> rough),
+                                      ///< rougher only while the BIC rule accepts the extra
+                                      ///< effective parameters (docs/tfa_modal.md)
+  double local_roughness_dof = 1.0;   ///< with track_roughness from the data: nu of the
+                                      ///< Student-t prior (scale from the same grid, by the
+                                      ///< same BIC rule) on the second differences of all
+                                      ///< tracks at each knot, which lets the roughness vary
+                                      ///< along the record: rough where the tracks bend
+                                      ///< (a sharp stiffness change), smooth elsewhere. Tried
+                                      ///< when the continuation chose tracks rougher than the
+                                      ///< smoothest, kept when its BIC is lower (> 0,
+                                      ///< dimensionless; 0: one roughness for the whole
+                                      ///< record; docs/tfa_modal.md, "Local roughness")
+  double lost_track_time_s = 0.3;     ///< design whole: a mode that sank into the noise
+                                      ///< (after its last valid sample its ANR never rises
+                                      ///< above its value there and ends below
+                                      ///< anr_threshold_db) has tracks the data no longer
+                                   ///< determine there; omega_j and alpha_j are continued from its
+                                   ///< last valid sample with their slopes decaying with
+                                   ///< this time constant, s (a damped trend; 0: held
+                                   ///< constant; < 0: the splines' own straight-line
+                                   ///< extrapolation). Those samples stay invalid
+                                   ///< (docs/tfa_modal.md, "Lost modes")
+  double decay_tie = 0.0;             ///< soft tie of the decay tracks, alpha_j(t) = rho_j
+                                      ///< alpha_1(t) with rho_j fitted: prior SD of the
+                                      ///< difference, relative to mode j's mean decay
+                                      ///< (dimensionless); 0 (default): no tie; < 0: from the
+                                      ///< data over 0.3 .. 0.003 (loose -> tight), tighter only
+                                      ///< while the BIC rule accepts the lost fit. Opt-in: it
+                                      ///< helps posture trials whose K and C change by a
+                                      ///< common factor and hurts movement trials
+                                      ///< (docs/tfa_modal.md)
+  double frequency_tie = 0.0;         ///< soft tie of the frequency tracks, omega_j(t) =
+                                      ///< rho_j omega_1(t) with rho_j fitted: prior SD of the
+                                      ///< difference, relative to mode j's mean frequency
+                                      ///< (dimensionless); 0 (default): no tie; < 0: from the
+                                      ///< data as decay_tie (searched after it). Opt-in, as
+                                      ///< decay_tie: it holds when stiffness changes by a
+                                      ///< common factor; it costs k12 on some constant-K
+                                      ///< posture trials and hurts movement trials
+                                      ///< (docs/tfa_modal.md). With a tie taken, the untied
+                                      ///< shape refit is still offered (shape_refit)
+  double init_window_s = 0.5;         ///< sliding matrix-pencil windows for the start, s
+  double anr_threshold_db = 0.0;      ///< validity: amplitude-to-noise ratio at least this, dB
+  double max_frequency_sd_hz = 0.1;   ///< validity: posterior SD of f_j(t) at most this, Hz
+  double max_mode_to_data_db = 20.0;  ///< validity: a mode's power at most this far above the
+                                      ///< whitened data power within +-0.25 s, dB (more: modes
+                                      ///< cancelling each other)
+  double min_mode_separation = 0.01;  ///< validity: two modes whose frequencies differ by less
+                                      ///< than this fraction of their mean (or 2 SDs) are both
+                                      ///< invalid there (merged tracks)
+  int max_iterations = 100;           ///< Levenberg-Marquardt iterations per stage
+  int real_terms = -1;                ///< R real terms b_k exp(beta_r tau) beside the modes
+                                      ///< (constant rate beta_r, 1/s, and amplitudes); < 0
+                                      ///< (default): the fewest (0 .. 2n) with which the start's
+                                      ///< matrix pencil finds the n oscillatory poles (0 on a
+                                      ///< Kelvin-Voigt arm; Poynting-Thomson trials need them)
+  bool offsets = true;                ///< design whole: also fit a constant offset per
+                                      ///< channel (linear), the error of the posture the
+                                      ///< deviations are taken from (the 0.2 s pre-onset
+                                      ///< mean), rad
+  bool shape_refit = true;            ///< design whole, shapes and roughness from the data:
+                                      ///< when the constant-shape continuation chose tracks
+                                      ///< rougher than the smoothest, also fit smoother tracks
+                                      ///< with the varying shapes from the start; kept when
+                                      ///< its BIC is lower and its frequencies stay at least
+                                      ///< 1 / (4 shape_knot_spacing_s) Hz apart
+                                      ///< (docs/tfa_modal.md, "Shape refit")
+  bool second_order = true;           ///< design whole: also fit the quadratic distortion of
+                                      ///< the strongest mode j (the arm's Coriolis and
+                                      ///< centripetal terms): s_k exp(2 Re Phi_j) + Re(h_k
+                                      ///< exp(2 Phi_j)) per channel, linear amplitudes, kept
+                                      ///< when they pay by the roughness rule
 };
 
 /// One real term of the fit: b_k exp(beta tau), tau from the first fitted sample.
@@ -153,65 +153,65 @@ struct RealTerm {
 
 /// One mode's tracks over the fitted times (T samples, C channels).
 struct ModeTrack {
-  Eigen::VectorXd frequency_hz;            ///< [T] f_j = omega_j / 2 pi, Hz
-  Eigen::VectorXd omega_rad_per_s;         ///< [T] omega_j(t) = d/dt phase (eq 6), rad/s
-  Eigen::VectorXd omega_dot_rad_per_s2;    ///< [T] d omega_j / dt, rad/s^2 (eqs 45-46)
-  Eigen::VectorXd alpha_per_s;             ///< [T] alpha_j(t), 1/s; eq 47 sign (< 0 decays);
-                                           ///< decay rate = -alpha_j
-  Eigen::VectorXd alpha_dot_per_s2;        ///< [T] d alpha_j / dt, 1/s^2 (eq 46, corrected)
-  Eigen::MatrixXcd shape;                  ///< (T x C) a_jk(t): complex mode shape times modal
-                                           ///< amplitude at tau = 0 (eq 38-39), channel units
-  Eigen::MatrixXd envelope;                ///< (T x C) A_jk(t) = |a_jk| exp(Re Phi_j), channel units
-  Eigen::MatrixXd phase_rad;               ///< (T x C) arg a_jk + Im Phi_j, continuous, rad
-  Eigen::MatrixXd log_envelope_rate_per_s; ///< (T x C) d/dt ln A_jk = alpha_j + d/dt ln|a_jk|
-                                           ///< (eq 47 per channel), 1/s
-  Eigen::VectorXd anr_db;                  ///< [T] amplitude-to-noise ratio, dB (docs/tfa_modal.md)
-  Eigen::VectorXd frequency_sd_hz;         ///< [T] posterior SD of f_j, Hz
-  Eigen::VectorXd alpha_sd_per_s;          ///< [T] posterior SD of alpha_j, 1/s
-  double decay_ratio = 1.0;                ///< rho_j of the decay tie: alpha_j(t) ~ rho_j times
-                                           ///< the reference mode's (the start's lowest
-                                           ///< frequency, ratio 1); 1 without a tie
-  double frequency_ratio = 1.0;            ///< rho_j of the frequency tie: omega_j(t) ~ rho_j
-                                           ///< times the reference mode's; 1 without a tie
+  Eigen::VectorXd frequency_hz;          ///< [T] f_j = omega_j / 2 pi, Hz
+  Eigen::VectorXd omega_rad_per_s;       ///< [T] omega_j(t) = d/dt phase (eq 6), rad/s
+  Eigen::VectorXd omega_dot_rad_per_s2;  ///< [T] d omega_j / dt, rad/s^2 (eqs 45-46)
+  Eigen::VectorXd alpha_per_s;           ///< [T] alpha_j(t), 1/s; eq 47 sign (< 0 decays);
+                                         ///< decay rate = -alpha_j
+  Eigen::VectorXd alpha_dot_per_s2;      ///< [T] d alpha_j / dt, 1/s^2 (eq 46, corrected)
+  Eigen::MatrixXcd shape;                ///< (T x C) a_jk(t): complex mode shape times modal
+                                         ///< amplitude at tau = 0 (eq 38-39), channel units
+  Eigen::MatrixXd envelope;              ///< (T x C) A_jk(t) = |a_jk| exp(Re Phi_j), channel units
+  Eigen::MatrixXd phase_rad;             ///< (T x C) arg a_jk + Im Phi_j, continuous, rad
+  Eigen::MatrixXd log_envelope_rate_per_s;  ///< (T x C) d/dt ln A_jk = alpha_j + d/dt ln|a_jk|
+                                            ///< (eq 47 per channel), 1/s
+  Eigen::VectorXd anr_db;           ///< [T] amplitude-to-noise ratio, dB (docs/tfa_modal.md)
+  Eigen::VectorXd frequency_sd_hz;  ///< [T] posterior SD of f_j, Hz
+  Eigen::VectorXd alpha_sd_per_s;   ///< [T] posterior SD of alpha_j, 1/s
+  double decay_ratio = 1.0;         ///< rho_j of the decay tie: alpha_j(t) ~ rho_j times
+                                    ///< the reference mode's (the start's lowest
+                                    ///< frequency, ratio 1); 1 without a tie
+  double frequency_ratio = 1.0;     ///< rho_j of the frequency tie: omega_j(t) ~ rho_j
+                                    ///< times the reference mode's; 1 without a tie
   Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] fit converged; ANR, frequency SD, mode-to-
                                                 ///< data power and separation within limits
 };
 
 struct DampedModesResult {
-  Status status;                    ///< failure: start not found or the fit failed
-  bool converged = false;           ///< Levenberg-Marquardt converged in max_iterations; when not,
-                                    ///< the fit is returned with every valid flag false
-  std::string warning;              ///< why converged is false, else empty
-  Eigen::VectorXd t_s;              ///< [T] fitted sample times, s (same clock as the input)
-  std::vector<ModeTrack> modes;     ///< [n] in ascending mean frequency
-  double rate_hz = 0.0;             ///< sample rate of the fitted data, Hz
-  Eigen::MatrixXd noise_covariance; ///< (C x C) of the filtered pre-onset noise, channel units^2
-  std::vector<RealTerm> real_terms; ///< [R] slowest first; empty without real terms
-  Eigen::VectorXd offset_rad;       ///< [C] fitted constant offset per channel (the posture's
-                                    ///< error; zeros when not fitted), channel units (rad)
-  int second_order_mode = -1;       ///< index in `modes` of the mode whose quadratic
-                                    ///< distortion was fitted; -1: none
-  Eigen::MatrixXd fitted;           ///< (T x C) the model at t_s (modes, real terms, offsets
-                                    ///< and second-order terms), channel units
-  Eigen::MatrixXd data;             ///< (T x C) filtered, decimated data at t_s, channel units
-  MatrixPencilResult start;         ///< global matrix pencil over the fitted samples
-  double shape_weight = 0.0;        ///< shape-change penalty used; 0: constant shapes (no
-                                    ///< shape stage, or, with the weight from the data, the BIC
-                                    ///< kept the constant-shape fit)
-  bool shape_refit = false;         ///< the shape refit replaced the constant-shape continuation's
-                                    ///< result (track_roughness and shape_weight are the refit's)
-  double track_roughness = 0.0;     ///< track roughness prior SD used, rad/s and 1/s (with a
-                                    ///< local roughness: the Student-t prior's scale)
-  Eigen::VectorXd roughness_t_s;    ///< [K] with a local roughness: the knots at which it is
-                                    ///< given (the middle knot of each second difference), s
-                                    ///< (same clock as t_s); empty: one roughness throughout
-  Eigen::VectorXd roughness_sd;     ///< [K] with a local roughness: the prior SD of the tracks'
-                                    ///< second differences at roughness_t_s (the last EM
-                                    ///< sweep's), rad/s and 1/s
-  double decay_tie = 0.0;           ///< decay-tie prior SD used (relative); 0: none
-  double frequency_tie = 0.0;       ///< frequency-tie prior SD used (relative); 0: none
+  Status status;                     ///< failure: start not found or the fit failed
+  bool converged = false;            ///< Levenberg-Marquardt converged in max_iterations; when not,
+                                     ///< the fit is returned with every valid flag false
+  std::string warning;               ///< why converged is false, else empty
+  Eigen::VectorXd t_s;               ///< [T] fitted sample times, s (same clock as the input)
+  std::vector<ModeTrack> modes;      ///< [n] in ascending mean frequency
+  double rate_hz = 0.0;              ///< sample rate of the fitted data, Hz
+  Eigen::MatrixXd noise_covariance;  ///< (C x C) of the filtered pre-onset noise, channel units^2
+  std::vector<RealTerm> real_terms;  ///< [R] slowest first; empty without real terms
+  Eigen::VectorXd offset_rad;        ///< [C] fitted constant offset per channel (the posture's
+                                     ///< error; zeros when not fitted), channel units (rad)
+  int second_order_mode = -1;        ///< index in `modes` of the mode whose quadratic
+                                     ///< distortion was fitted; -1: none
+  Eigen::MatrixXd fitted;            ///< (T x C) the model at t_s (modes, real terms, offsets
+                                     ///< and second-order terms), channel units
+  Eigen::MatrixXd data;              ///< (T x C) filtered, decimated data at t_s, channel units
+  MatrixPencilResult start;          ///< global matrix pencil over the fitted samples
+  double shape_weight = 0.0;         ///< shape-change penalty used; 0: constant shapes (no
+                                     ///< shape stage, or, with the weight from the data, the BIC
+                                     ///< kept the constant-shape fit)
+  bool shape_refit = false;          ///< the shape refit replaced the constant-shape continuation's
+                                     ///< result (track_roughness and shape_weight are the refit's)
+  double track_roughness = 0.0;      ///< track roughness prior SD used, rad/s and 1/s (with a
+                                     ///< local roughness: the Student-t prior's scale)
+  Eigen::VectorXd roughness_t_s;     ///< [K] with a local roughness: the knots at which it is
+                                     ///< given (the middle knot of each second difference), s
+                                     ///< (same clock as t_s); empty: one roughness throughout
+  Eigen::VectorXd roughness_sd;      ///< [K] with a local roughness: the prior SD of the tracks'
+                                     ///< second differences at roughness_t_s (the last EM
+                                     ///< sweep's), rad/s and 1/s
+  double decay_tie = 0.0;            ///< decay-tie prior SD used (relative); 0: none
+  double frequency_tie = 0.0;        ///< frequency-tie prior SD used (relative); 0: none
   double residual_rms_whitened = 0.0;  ///< RMS whitened data residual (1 = noise level)
-  int iterations = 0;               ///< Levenberg-Marquardt iterations, all stages
+  int iterations = 0;                  ///< Levenberg-Marquardt iterations, all stages
 };
 
 /// Fits n damped modes to the free response in `deviation` ((S x C), channel units, typically

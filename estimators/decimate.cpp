@@ -29,7 +29,8 @@ DecimationResult decimate(const Eigen::Ref<const Eigen::MatrixXd>& x, double sam
   for (int n = -half; n <= half; ++n) {
     const double sinc = n == 0 ? 1.0 : std::sin(2.0 * M_PI * fc * n) / (2.0 * M_PI * fc * n);
     const double q = static_cast<double>(n) / half;
-    const double w = boost::math::cyl_bessel_i(0, options.kaiser_beta * std::sqrt(1.0 - q * q)) / i0;
+    const double w =
+        boost::math::cyl_bessel_i(0, options.kaiser_beta * std::sqrt(1.0 - q * q)) / i0;
     h(n + half) = sinc * w;
   }
   h /= h.sum();

@@ -6,7 +6,7 @@
 namespace stiffid::estimators {
 
 struct DecimationOptions {
-  int factor = 1;               ///< D: keep every D-th sample
+  int factor = 1;                 ///< D: keep every D-th sample
   int half_taps_per_factor = 12;  ///< filter half-length in input samples = this x D
   double cutoff_fraction = 0.8;   ///< cut-off as a fraction of the output Nyquist frequency
   double kaiser_beta = 9.0;       ///< filter window shape (stop band about -90 dB)

@@ -24,10 +24,10 @@ RealFft::RealFft(int n, int batch) : n_(n), batch_(batch) {
   complex_ = fftw_alloc_complex(static_cast<size_t>(bins()) * batch_);
   std::memset(real_, 0, sizeof(double) * static_cast<size_t>(n_) * batch_);
   // Column-major batches: column c of the real block starts at c*n, of the complex block at c*bins.
-  forward_plan_ = fftw_plan_many_dft_r2c(1, &n_, batch_, real_, nullptr, 1, n_, complex_, nullptr, 1,
-                                         bins(), FFTW_ESTIMATE);
-  inverse_plan_ = fftw_plan_many_dft_c2r(1, &n_, batch_, complex_, nullptr, 1, bins(), real_, nullptr,
-                                         1, n_, FFTW_ESTIMATE | FFTW_DESTROY_INPUT);
+  forward_plan_ = fftw_plan_many_dft_r2c(1, &n_, batch_, real_, nullptr, 1, n_, complex_, nullptr,
+                                         1, bins(), FFTW_ESTIMATE);
+  inverse_plan_ = fftw_plan_many_dft_c2r(1, &n_, batch_, complex_, nullptr, 1, bins(), real_,
+                                         nullptr, 1, n_, FFTW_ESTIMATE | FFTW_DESTROY_INPUT);
   assert(forward_plan_ != nullptr && inverse_plan_ != nullptr);
 }
 

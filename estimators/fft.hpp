@@ -19,14 +19,14 @@ class RealFft {
   RealFft(const RealFft&) = delete;
   RealFft& operator=(const RealFft&) = delete;
 
-  int size() const { return n_; }           ///< transform length n, samples
-  int bins() const { return n_ / 2 + 1; }   ///< one-sided bins n/2 + 1
-  int batch() const { return batch_; }      ///< columns per call
+  int size() const { return n_; }          ///< transform length n, samples
+  int bins() const { return n_ / 2 + 1; }  ///< one-sided bins n/2 + 1
+  int batch() const { return batch_; }     ///< columns per call
 
   /// X[k] = sum_t x[t] exp(-2 pi i k t / n) for each column: (n x batch) -> (bins x batch).
   Eigen::MatrixXcd forward(const Eigen::Ref<const Eigen::MatrixXd>& x);
-  /// x[t] = (1/n) sum_k X[k] exp(+2 pi i k t / n) over the full Hermitian spectrum, for each column:
-  /// (bins x batch) -> (n x batch). Inverse of forward.
+  /// x[t] = (1/n) sum_k X[k] exp(+2 pi i k t / n) over the full Hermitian spectrum, for each
+  /// column: (bins x batch) -> (n x batch). Inverse of forward.
   Eigen::MatrixXd inverse(const Eigen::Ref<const Eigen::MatrixXcd>& spectrum);
 
   /// In place, without copies: fill the plan's input (column c at input() + c * size()), run

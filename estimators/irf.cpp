@@ -67,9 +67,10 @@ Eigen::MatrixXd assemble_psi(const Eigen::MatrixXd& phi_inputs, int inputs, int 
       }
       if (k != i) {
         psi.block(static_cast<Eigen::Index>(k) * lags, static_cast<Eigen::Index>(i) * lags, lags,
-                  lags) = psi.block(static_cast<Eigen::Index>(i) * lags,
-                                    static_cast<Eigen::Index>(k) * lags, lags, lags)
-                              .transpose();
+                  lags) =
+            psi.block(static_cast<Eigen::Index>(i) * lags, static_cast<Eigen::Index>(k) * lags,
+                      lags, lags)
+                .transpose();
       }
     }
   }
@@ -243,8 +244,7 @@ Solution solve_pseudo_inverse(const Eigen::MatrixXd& psi, const Eigen::MatrixXd&
   const int size = static_cast<int>(w.size());
   const int outputs = static_cast<int>(phi.cols());
   const double largest = w(size - 1);
-  s.condition_number =
-      w(0) > 0.0 ? largest / w(0) : std::numeric_limits<double>::infinity();
+  s.condition_number = w(0) > 0.0 ? largest / w(0) : std::numeric_limits<double>::infinity();
   const double floor = size * std::numeric_limits<double>::epsilon() * largest;
 
   const Eigen::MatrixXd& projection = eig.projections();  // V^T phi, (N*L x M)
@@ -279,8 +279,8 @@ Solution solve_pseudo_inverse(const Eigen::MatrixXd& psi, const Eigen::MatrixXd&
     double residual = static_cast<double>(outputs);  // sum_j (1 - VAF_j) with no vector kept
     for (int m = 1; m <= count; ++m) {
       residual -= total(usable[m - 1]);
-      s.mdl(m - 1) = (1.0 + static_cast<double>(m) * outputs * std::log(n) / n) *
-                     std::max(residual, 0.0);
+      s.mdl(m - 1) =
+          (1.0 + static_cast<double>(m) * outputs * std::log(n) / n) * std::max(residual, 0.0);
     }
     Eigen::Index best = 0;
     s.mdl.minCoeff(&best);
@@ -376,12 +376,11 @@ IrfResult estimate_irf(const Eigen::Ref<const Eigen::MatrixXd>& inputs,
     }
   }
 
-  Solution solution =
-      toeplitz_solve
-          ? solve_block_toeplitz(phi_all.leftCols(input_pairs), n_in, lags, max_lag, phi_xy)
-      : options.inverse == IrfInverse::full
-          ? solve_full(psi, phi_xy)
-          : solve_pseudo_inverse(psi, phi_xy, output_power, samples, options);
+  Solution solution = toeplitz_solve ? solve_block_toeplitz(phi_all.leftCols(input_pairs), n_in,
+                                                            lags, max_lag, phi_xy)
+                      : options.inverse == IrfInverse::full
+                          ? solve_full(psi, phi_xy)
+                          : solve_pseudo_inverse(psi, phi_xy, output_power, samples, options);
   result.condition_number = solution.condition_number;
   result.mdl = std::move(solution.mdl);
   if (!solution.status.ok) {

@@ -74,8 +74,8 @@ struct IrfResult {
   /// when the record is long against the lags.
   Eigen::VectorXd vaf_correlation_percent;
   double r2_correlation_percent = 0.0;  ///< eq 13 / 25, same convention, %
-  int rank = 0;       ///< eigenvectors of Psi used (N*L for the full solve)
-  int full_rank = 0;  ///< N*L
+  int rank = 0;                         ///< eigenvectors of Psi used (N*L for the full solve)
+  int full_rank = 0;                    ///< N*L
   /// Condition number of Psi: 2-norm (largest / smallest eigenvalue) for the pseudo-inverse, the
   /// Cholesky 1-norm estimate for the full solve; infinite when singular.
   double condition_number = 0.0;
@@ -88,16 +88,17 @@ struct IrfResult {
 
 /// Estimates the IRFs between N inputs (S x N) and M outputs (S x M) sampled at `sample_rate_hz`
 /// (Hz) for lags options.first_lag..last_lag. Correlations come from one batched FFT of all
-/// channels (correlation.hpp); the predicted outputs by blocked (overlap-add) convolution of the same mean-removed inputs.
+/// channels (correlation.hpp); the predicted outputs by blocked (overlap-add) convolution of the
+/// same mean-removed inputs.
 ///
 /// Pseudo-inverse (Westwick & Kearney 1997): Psi = V diag(w) V^T; eigenvector k contributes
 /// c_kj = (v_k^T Phi_j)^2 / w_k / phi_{y_j y_j}(0) of the variance of output j (eq 19-21 on the
 /// projected solution). Vectors are added in decreasing order of sum_j c_kj (`tsvd`: of w_k);
 /// `rank` keeps the first ones. MDL (Rissanen 1978, as used by Westwick & Kearney 1997 and
-/// Westwick & Kearney 2003 section 5.2.4): MDL(m) = (1 + p(m) ln(n) / n) V(m), V(m) = sum_j (1 - sum_{k<=m} c_kj) the
-/// normalised residual variance from correlations, with the M outputs treated as one record of
-/// n = S M samples and p(m) = m M parameters; for one output this is W&K's criterion. Eigenvalues
-/// below N*L * eps * (largest) are never used.
+/// Westwick & Kearney 2003 section 5.2.4): MDL(m) = (1 + p(m) ln(n) / n) V(m), V(m) = sum_j (1 -
+/// sum_{k<=m} c_kj) the normalised residual variance from correlations, with the M outputs treated
+/// as one record of n = S M samples and p(m) = m M parameters; for one output this is W&K's
+/// criterion. Eigenvalues below N*L * eps * (largest) are never used.
 ///
 /// Throws InputError on inconsistent sizes, first_lag > last_lag, S <= B - A, a non-positive
 /// sample rate or a rank out of range. Numerical failure is reported in `status`.

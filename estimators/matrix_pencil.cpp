@@ -198,9 +198,9 @@ MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd
     if (z(j).imag() == 0.0 && z(j).real() > 0.0) real_up.push_back(lambda.real());
   }
   if (static_cast<int>(lambda_up.size()) < n) {
-    result.status = Status::failure(
-        "matrix pencil: found " + std::to_string(lambda_up.size()) + " oscillatory poles of " +
-        std::to_string(n) + " (the others are real: overdamped modes or too much noise)");
+    result.status = Status::failure("matrix pencil: found " + std::to_string(lambda_up.size()) +
+                                    " oscillatory poles of " + std::to_string(n) +
+                                    " (the others are real: overdamped modes or too much noise)");
     return result;
   }
   if (static_cast<int>(real_up.size()) < real_poles) {
@@ -209,8 +209,7 @@ MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd
                                     " (the model order went to further oscillations)");
     return result;
   }
-  std::sort(lambda_up.begin(), lambda_up.end(),
-            [](auto a, auto b) { return a.imag() < b.imag(); });
+  std::sort(lambda_up.begin(), lambda_up.end(), [](auto a, auto b) { return a.imag() < b.imag(); });
   Eigen::VectorXcd lambda(n);
   for (int j = 0; j < n; ++j) lambda(j) = lambda_up[j];
   result.omega_rad_per_s = lambda.imag();

@@ -9,9 +9,9 @@
 // lambda_j = alpha_j + i omega_j, with R optional real poles beta_r (non-oscillatory exponentials,
 // e.g. the slow creep of a Poynting-Thomson element; options.real_poles, default none),
 // the real form of Piovesan 2012 eqs 29-34 (each real mode is a conjugate pair of complex poles,
-// a_jk = 2 c_j v_jk carries the complex mode shape v_j of eq 38 and the modal amplitude C_j e^-i phi_j
-// of eq 33). alpha_j follows the paper's sign (eq 47: alpha = d/dt ln A, negative for a decaying
-// mode); the decay rate is -alpha_j.
+// a_jk = 2 c_j v_jk carries the complex mode shape v_j of eq 38 and the modal amplitude C_j e^-i
+// phi_j of eq 33). alpha_j follows the paper's sign (eq 47: alpha = d/dt ln A, negative for a
+// decaying mode); the decay rate is -alpha_j.
 
 #include <Eigen/Core>
 
@@ -20,27 +20,28 @@
 namespace stiffid::estimators {
 
 struct MatrixPencilOptions {
-  int modes = 2;                 ///< n real damped oscillations (2n complex poles)
-  int real_poles = 0;            ///< R real poles beside them (model order 2n + R)
-  double pencil_fraction = 1.0 / 3.0;  ///< pencil parameter L as a fraction of the samples, (0, 0.5]
-  int max_pencil = 160;          ///< cap on L, samples: the cost is O(channels * samples * L +
-                                 ///< channels * L^2 + L^3) (Gram matrix, eigenproblem)
+  int modes = 2;       ///< n real damped oscillations (2n complex poles)
+  int real_poles = 0;  ///< R real poles beside them (model order 2n + R)
+  double pencil_fraction =
+      1.0 / 3.0;         ///< pencil parameter L as a fraction of the samples, (0, 0.5]
+  int max_pencil = 160;  ///< cap on L, samples: the cost is O(channels * samples * L +
+                         ///< channels * L^2 + L^3) (Gram matrix, eigenproblem)
 };
 
 struct MatrixPencilResult {
-  Status status;                        ///< failure when fewer than n oscillatory poles (or, with
-                                        ///< real_poles R, fewer than R real ones) were found
-  Eigen::VectorXd frequency_hz;         ///< [n] damped frequencies omega_j / 2 pi, Hz, ascending
-  Eigen::VectorXd omega_rad_per_s;      ///< [n] damped angular frequencies omega_j, rad/s
-  Eigen::VectorXd alpha_per_s;          ///< [n] alpha_j = Re(lambda_j), 1/s (eq 47 sign: < 0 decays)
-  Eigen::MatrixXcd amplitude;           ///< (n x C) a_jk at the first sample, channel units
-  Eigen::VectorXd real_rate_per_s;      ///< [R] real poles beta_r, 1/s (< 0 decays), slowest first
-  Eigen::MatrixXd real_amplitude;       ///< (R x C) b_rk at the first sample, channel units
-  Eigen::VectorXd singular_values;      ///< [L + 1] of the stacked Hankel matrix (model order
-                                        ///< check; from its Gram matrix, so those below ~1e-8 of
-                                        ///< the largest are not accurate)
-  double residual_rms = 0.0;            ///< RMS of data minus model over all samples, channel units
-  int pencil = 0;                       ///< pencil parameter L used, samples
+  Status status;                    ///< failure when fewer than n oscillatory poles (or, with
+                                    ///< real_poles R, fewer than R real ones) were found
+  Eigen::VectorXd frequency_hz;     ///< [n] damped frequencies omega_j / 2 pi, Hz, ascending
+  Eigen::VectorXd omega_rad_per_s;  ///< [n] damped angular frequencies omega_j, rad/s
+  Eigen::VectorXd alpha_per_s;      ///< [n] alpha_j = Re(lambda_j), 1/s (eq 47 sign: < 0 decays)
+  Eigen::MatrixXcd amplitude;       ///< (n x C) a_jk at the first sample, channel units
+  Eigen::VectorXd real_rate_per_s;  ///< [R] real poles beta_r, 1/s (< 0 decays), slowest first
+  Eigen::MatrixXd real_amplitude;   ///< (R x C) b_rk at the first sample, channel units
+  Eigen::VectorXd singular_values;  ///< [L + 1] of the stacked Hankel matrix (model order
+                                    ///< check; from its Gram matrix, so those below ~1e-8 of
+                                    ///< the largest are not accurate)
+  double residual_rms = 0.0;        ///< RMS of data minus model over all samples, channel units
+  int pencil = 0;                   ///< pencil parameter L used, samples
 };
 
 /// Fewest samples a pencil of n oscillations and R real poles needs: 2 (2n + R) + 2.
@@ -51,8 +52,8 @@ inline int matrix_pencil_min_samples(int modes, int real_poles) {
 /// Estimates n damped oscillations (and R real poles) shared by the columns of `samples` (S x C,
 /// one channel per column, S >= 4n + 2R + 2). Signal subspace: the 2n + R dominant right singular
 /// vectors V ((L+1) x (2n + R)) of
-/// the stacked Hankel matrix [Y_1; ...; Y_C], Y_k(i, l) = x_k(i + l) ((S - L) x (L + 1) each); poles
-/// z = eig(V_1^+ V_2) with V_1, V_2 the first and last L rows of V (Hua & Sarkar eq 23);
+/// the stacked Hankel matrix [Y_1; ...; Y_C], Y_k(i, l) = x_k(i + l) ((S - L) x (L + 1) each);
+/// poles z = eig(V_1^+ V_2) with V_1, V_2 the first and last L rows of V (Hua & Sarkar eq 23);
 /// lambda = ln(z) * sample_rate_hz; amplitudes by linear least squares on the damped-exponential
 /// basis. The n poles with positive imaginary part and the lowest frequencies are reported, and the
 /// real poles. Throws InputError on too few samples, a non-positive rate, n < 1 or R < 0.

@@ -42,7 +42,8 @@ ModalAnalysisResult modal_analysis(const RidgeResult& ridges,
   for (int j = 0; j < n; ++j) {
     log_amplitude.col(j) = 0.5 * ridges.amplitude[j].rowwise().squaredNorm().array().log();
   }
-  const SavitzkyGolayResult omega = savitzky_golay(ridges.omega_rad_per_s, rate_hz, options.smoothing);
+  const SavitzkyGolayResult omega =
+      savitzky_golay(ridges.omega_rad_per_s, rate_hz, options.smoothing);
   const SavitzkyGolayResult log_a = savitzky_golay(log_amplitude, rate_hz, options.smoothing);
   r.omega_rad_per_s = omega.value;
   r.omega_dot_rad_per_s2 = omega.first_derivative;
@@ -51,8 +52,8 @@ ModalAnalysisResult modal_analysis(const RidgeResult& ridges,
   r.alpha_dot_per_s2 = log_a.second_derivative;
   const Eigen::ArrayXXd w = r.omega_rad_per_s.array(), wd = r.omega_dot_rad_per_s2.array();
   const Eigen::ArrayXXd a = r.alpha_per_s.array(), ad = r.alpha_dot_per_s2.array();
-  r.gamma_per_s = (-a - wd / (2.0 * w)).matrix();                      // eq 45
-  r.eta_squared_per_s2 = (w * w + a * a + a * wd / w - ad).matrix();   // eq 46, alpha-dot
+  r.gamma_per_s = (-a - wd / (2.0 * w)).matrix();                     // eq 45
+  r.eta_squared_per_s2 = (w * w + a * a + a * wd / w - ad).matrix();  // eq 46, alpha-dot
 
   // Mode shapes in joint space (eqs 37, 41), unit norm, sign continuous over frames.
   r.phase_difference_rad = Eigen::MatrixXd::Zero(frames, n);

@@ -19,26 +19,26 @@ struct ModalAnalysisOptions {
 
 /// Everything per frame t_m (T frames, n modes = n joints).
 struct ModalAnalysisResult {
-  Eigen::VectorXd time_s;                 ///< [T] s
-  Eigen::MatrixXd omega_rad_per_s;        ///< (T x n) smoothed omega_j, rad/s
-  Eigen::MatrixXd omega_dot_rad_per_s2;   ///< (T x n) d omega_j / dt, rad/s^2
-  Eigen::MatrixXd amplitude;              ///< (T x n) smoothed A_j = |A_j.| over channels, rad
-  Eigen::MatrixXd alpha_per_s;            ///< (T x n) alpha_j = d ln A_j / dt, 1/s (eq 47)
-  Eigen::MatrixXd alpha_dot_per_s2;       ///< (T x n) d alpha_j / dt, 1/s^2
-  Eigen::MatrixXd gamma_per_s;            ///< (T x n) Gamma_j = -alpha_j - omega_j'/(2 omega_j),
-                                          ///< 1/s (eq 45)
-  Eigen::MatrixXd eta_squared_per_s2;     ///< (T x n) eta_j^2 = omega^2 + alpha^2
-                                          ///< + alpha omega'/omega - alpha', 1/s^2 (eq 46)
-  Eigen::MatrixXd phase_difference_rad;   ///< (T x n) rho_j: phase of mode j in each channel
-                                          ///< relative to its strongest channel, folded into
-                                          ///< (-pi/2, pi/2] (non-classical damping, eqs 41-42);
-                                          ///< for 2 joints, the elbow relative to the shoulder
-  Eigen::MatrixXd time_lag_s;             ///< (T x n) Delta_j = rho_j / omega_j, s (eq 42)
-  std::vector<Eigen::MatrixXd> mode_shape;     ///< [T] (n x n) joint-space mode shapes phi_j
-                                               ///< (columns), from eqs 37 and 41, unit norm
-  std::vector<Eigen::MatrixXd> eigenvectors;   ///< [T] (n x n) P: orthonormal eigenvectors of the
-                                               ///< normalised stiffness (columns, eq 43)
-  std::vector<Eigen::MatrixXd> inertia_sqrt;   ///< [T] (n x n) M^1/2, sqrt(kg) m (eq 24)
+  Eigen::VectorXd time_s;                   ///< [T] s
+  Eigen::MatrixXd omega_rad_per_s;          ///< (T x n) smoothed omega_j, rad/s
+  Eigen::MatrixXd omega_dot_rad_per_s2;     ///< (T x n) d omega_j / dt, rad/s^2
+  Eigen::MatrixXd amplitude;                ///< (T x n) smoothed A_j = |A_j.| over channels, rad
+  Eigen::MatrixXd alpha_per_s;              ///< (T x n) alpha_j = d ln A_j / dt, 1/s (eq 47)
+  Eigen::MatrixXd alpha_dot_per_s2;         ///< (T x n) d alpha_j / dt, 1/s^2
+  Eigen::MatrixXd gamma_per_s;              ///< (T x n) Gamma_j = -alpha_j - omega_j'/(2 omega_j),
+                                            ///< 1/s (eq 45)
+  Eigen::MatrixXd eta_squared_per_s2;       ///< (T x n) eta_j^2 = omega^2 + alpha^2
+                                            ///< + alpha omega'/omega - alpha', 1/s^2 (eq 46)
+  Eigen::MatrixXd phase_difference_rad;     ///< (T x n) rho_j: phase of mode j in each channel
+                                            ///< relative to its strongest channel, folded into
+                                            ///< (-pi/2, pi/2] (non-classical damping, eqs 41-42);
+                                            ///< for 2 joints, the elbow relative to the shoulder
+  Eigen::MatrixXd time_lag_s;               ///< (T x n) Delta_j = rho_j / omega_j, s (eq 42)
+  std::vector<Eigen::MatrixXd> mode_shape;  ///< [T] (n x n) joint-space mode shapes phi_j
+                                            ///< (columns), from eqs 37 and 41, unit norm
+  std::vector<Eigen::MatrixXd> eigenvectors;  ///< [T] (n x n) P: orthonormal eigenvectors of the
+                                              ///< normalised stiffness (columns, eq 43)
+  std::vector<Eigen::MatrixXd> inertia_sqrt;  ///< [T] (n x n) M^1/2, sqrt(kg) m (eq 24)
   std::vector<Eigen::MatrixXd> stiffness_nm_per_rad;  ///< [T] (n x n) K_theta, N m/rad (eq 48)
   std::vector<Eigen::MatrixXd> damping_nms_per_rad;   ///< [T] (n x n) C_theta, N m s/rad (eq 48)
   /// [T] the smoothed mode shapes at frame t are separated: M^1/2 phi_j span the joint space

@@ -97,8 +97,7 @@ void mapping_state_space(const Eigen::MatrixXd& m_half, const Eigen::MatrixXd& i
   for (int j = 0; j < n; ++j)
     mu(j) = Complex(-gamma(j), std::sqrt(std::max(0.0, eta2(j) - gamma(j) * gamma(j))));
   Eigen::MatrixXcd x(2 * n, 2 * n), y(n, 2 * n);
-  x << shapes, shapes.conjugate(), shapes * mu.asDiagonal(),
-      (shapes * mu.asDiagonal()).conjugate();
+  x << shapes, shapes.conjugate(), shapes * mu.asDiagonal(), (shapes * mu.asDiagonal()).conjugate();
   y << shapes * mu.cwiseProduct(mu).asDiagonal(),
       (shapes * mu.cwiseProduct(mu).asDiagonal()).conjugate();
   // Bottom block of A [V; V mu] = [V; V mu] mu with A = [[0, I], [-M^-1 K, -M^-1 C]].
@@ -135,7 +134,8 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
   r.valid.resize(t_count);
   Eigen::MatrixXd m_half;
   for (int i = 0; i < t_count; ++i) {
-    const Eigen::MatrixXd& inertia = inertia_kg_m2.size() == 1 ? inertia_kg_m2[0] : inertia_kg_m2[i];
+    const Eigen::MatrixXd& inertia =
+        inertia_kg_m2.size() == 1 ? inertia_kg_m2[0] : inertia_kg_m2[i];
     if (i == 0 || inertia_kg_m2.size() > 1) m_half = models::spd_sqrt(inertia);
     Eigen::MatrixXcd shapes(c, n);
     Eigen::VectorXd gamma(n), eta2(n);
@@ -147,8 +147,8 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
       const ModeTrack& mt = modes.modes[j];
       const double w = mt.omega_rad_per_s(i), a = mt.alpha_per_s(i);
       const double w_dot = mt.omega_dot_rad_per_s2(i), a_dot = mt.alpha_dot_per_s2(i);
-      gamma(j) = -a - w_dot / (2.0 * w);                    // eq 45
-      eta2(j) = w * w + a * a + a * w_dot / w - a_dot;     // eq 46 (alpha dot, see header)
+      gamma(j) = -a - w_dot / (2.0 * w);                // eq 45
+      eta2(j) = w * w + a * a + a * w_dot / w - a_dot;  // eq 46 (alpha dot, see header)
       shapes.col(j) = mt.shape.row(i).transpose();
       if (mt.valid(i)) weight(j) = std::pow(10.0, mt.anr_db(i) / 10.0);
       valid = valid && mt.valid(i) && eta2(j) > gamma(j) * gamma(j);

@@ -55,14 +55,14 @@ struct ModalParametersOptions {
 };
 
 struct ModalParametersResult {
-  Eigen::VectorXd t_s;                       ///< [T] s, as the tracks
-  Eigen::MatrixXd gamma_per_s;               ///< (n x T) Gamma_j(t), eq 45, 1/s
-  Eigen::MatrixXd eta_squared_rad2_per_s2;   ///< (n x T) eta_j^2(t), eq 46, rad^2/s^2
-  std::vector<Eigen::MatrixXd> eigenvectors; ///< [T] (C x n) real P(t) of eq 43 (M^1/2-normalized
-                                             ///< coordinates, orthonormal columns)
-  std::vector<Eigen::MatrixXd> stiffness;    ///< [T] (C x C) joint stiffness K(t), N m/rad when
-                                             ///< channels are rad and inertia kg m^2
-  std::vector<Eigen::MatrixXd> damping;      ///< [T] (C x C) joint damping C(t), N m s/rad
+  Eigen::VectorXd t_s;                        ///< [T] s, as the tracks
+  Eigen::MatrixXd gamma_per_s;                ///< (n x T) Gamma_j(t), eq 45, 1/s
+  Eigen::MatrixXd eta_squared_rad2_per_s2;    ///< (n x T) eta_j^2(t), eq 46, rad^2/s^2
+  std::vector<Eigen::MatrixXd> eigenvectors;  ///< [T] (C x n) real P(t) of eq 43 (M^1/2-normalized
+                                              ///< coordinates, orthonormal columns)
+  std::vector<Eigen::MatrixXd> stiffness;     ///< [T] (C x C) joint stiffness K(t), N m/rad when
+                                              ///< channels are rad and inertia kg m^2
+  std::vector<Eigen::MatrixXd> damping;       ///< [T] (C x C) joint damping C(t), N m s/rad
   Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] every mode valid at t, eta^2 > Gamma^2
                                                 ///< and K(t) positive definite
 };

@@ -4,7 +4,8 @@
 
 namespace stiffid::estimators {
 
-NormalizedForceResult normalized_force(const RidgeResult& ridges, const ModalAnalysisResult& modal) {
+NormalizedForceResult normalized_force(const RidgeResult& ridges,
+                                       const ModalAnalysisResult& modal) {
   const int frames = static_cast<int>(modal.time_s.size());
   const int n = static_cast<int>(modal.omega_rad_per_s.cols());
   NormalizedForceResult r;
@@ -19,8 +20,8 @@ NormalizedForceResult normalized_force(const RidgeResult& ridges, const ModalAna
       const Eigen::VectorXd projector =
           modal.inertia_sqrt[m] * modal.eigenvectors[m].col(j);  // M^1/2 p_j (M^1/2 symmetric)
       const Eigen::VectorXcd c = ridges.amplitude_c[j].row(m).transpose();
-      const std::complex<double> z = projector.dot(c.real()) +
-                                     std::complex<double>(0.0, 1.0) * projector.dot(c.imag());
+      const std::complex<double> z =
+          projector.dot(c.real()) + std::complex<double>(0.0, 1.0) * projector.dot(c.imag());
       const std::complex<double> lambda(modal.alpha_per_s(m, j), modal.omega_rad_per_s(m, j));
       const double eta2 = modal.eta_squared_per_s2(m, j), gamma = modal.gamma_per_s(m, j);
       r.coordinate(m, j) = z.real();

@@ -31,8 +31,9 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
   const int channels = static_cast<int>(signal.real.cols());
   const bool analytic = signal.analytic();
   if (analytic && (signal.imag.rows() != samples || signal.imag.cols() != channels)) {
-    throw InputError("reassigned spectrogram: the Hilbert transforms must have the shape of the "
-                     "channels");
+    throw InputError(
+        "reassigned spectrogram: the Hilbert transforms must have the shape of the "
+        "channels");
   }
   if (!(signal.sample_rate_hz > 0.0)) {
     throw InputError("reassigned spectrogram: sample rate must be positive");
@@ -63,13 +64,14 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
   const int k_lo = std::max(0, static_cast<int>(std::ceil(options.min_frequency_hz / df - 1e-9)));
   const int k_hi =
       options.max_frequency_hz > 0.0
-          ? std::min(nyquist_bin, static_cast<int>(std::floor(options.max_frequency_hz / df + 1e-9)))
+          ? std::min(nyquist_bin,
+                     static_cast<int>(std::floor(options.max_frequency_hz / df + 1e-9)))
           : nyquist_bin;
   if (k_hi < k_lo) {
     throw InputError("reassigned spectrogram: no FFT bin between " +
                      number_text(options.min_frequency_hz) + " and " +
-                     number_text(options.max_frequency_hz) + " Hz (bin spacing " +
-                     number_text(df) + " Hz)");
+                     number_text(options.max_frequency_hz) + " Hz (bin spacing " + number_text(df) +
+                     " Hz)");
   }
 
   ReassignedSpectrogram r;
@@ -111,48 +113,49 @@ ReassignedSpectrogram reassigned_spectrogram(const TfSignal& signal,
   // Two fixed groups of chunks (one per core of a small machine), each with its own plan and
   // buffers; every frame's transforms are the same whichever group makes them.
   const int chunks = (frames + chunk_frames - 1) / chunk_frames;
-  data::parallel_for_groups(chunks, std::min(2, chunks), [&](std::size_t, int chunk_begin,
-                                                             int chunk_end) {
-    RealFft fft(n_fft, per_frame * chunk_frames);
-    for (int index = chunk_begin; index < chunk_end; ++index) {
-      const int first = index * chunk_frames;
-      const int count = std::min(chunk_frames, frames - first);
-      for (int f = 0; f < count; ++f) {
-        const int m = first + f;
-        const SampledWindow::Cut cut = r.sampled->cut(r.offset_lo(m), r.offset_hi(m));
-        const Eigen::VectorXd* windows[3] = {&cut.h, &cut.th, &cut.dh};
-        for (int w = 0; w < 3; ++w) {
-          for (int p = 0; p < parts; ++p) {
-            const Eigen::MatrixXd& x = p == 0 ? signal.real : signal.imag;
-            for (int ch = 0; ch < channels; ++ch) {
-              // Offset n goes to FFT index n mod N: the negative offsets wrap to the end, and
-              // the indices between the window's two ends are zero.
-              double* col = fft.input() + static_cast<std::ptrdiff_t>(
-                                              f * per_frame + (w * parts + p) * channels + ch) *
-                                              n_fft;
-              std::fill(col + cut.hi + 1, col + n_fft + std::min(cut.lo, 0), 0.0);
-              if (cut.lo > 0) std::fill(col, col + cut.lo, 0.0);
-              const double* window = windows[w]->data();
-              const double* samples = &x(r.centre(m) + cut.lo, ch);
-              for (int i = 0; i < cut.h.size(); ++i) {
-                const int n = cut.lo + i;
-                col[n < 0 ? n + n_fft : n] = window[i] * samples[i];
+  data::parallel_for_groups(
+      chunks, std::min(2, chunks), [&](std::size_t, int chunk_begin, int chunk_end) {
+        RealFft fft(n_fft, per_frame * chunk_frames);
+        for (int index = chunk_begin; index < chunk_end; ++index) {
+          const int first = index * chunk_frames;
+          const int count = std::min(chunk_frames, frames - first);
+          for (int f = 0; f < count; ++f) {
+            const int m = first + f;
+            const SampledWindow::Cut cut = r.sampled->cut(r.offset_lo(m), r.offset_hi(m));
+            const Eigen::VectorXd* windows[3] = {&cut.h, &cut.th, &cut.dh};
+            for (int w = 0; w < 3; ++w) {
+              for (int p = 0; p < parts; ++p) {
+                const Eigen::MatrixXd& x = p == 0 ? signal.real : signal.imag;
+                for (int ch = 0; ch < channels; ++ch) {
+                  // Offset n goes to FFT index n mod N: the negative offsets wrap to the end, and
+                  // the indices between the window's two ends are zero.
+                  double* col = fft.input() + static_cast<std::ptrdiff_t>(
+                                                  f * per_frame + (w * parts + p) * channels + ch) *
+                                                  n_fft;
+                  std::fill(col + cut.hi + 1, col + n_fft + std::min(cut.lo, 0), 0.0);
+                  if (cut.lo > 0) std::fill(col, col + cut.lo, 0.0);
+                  const double* window = windows[w]->data();
+                  const double* samples = &x(r.centre(m) + cut.lo, ch);
+                  for (int i = 0; i < cut.h.size(); ++i) {
+                    const int n = cut.lo + i;
+                    col[n < 0 ? n + n_fft : n] = window[i] * samples[i];
+                  }
+                }
               }
             }
           }
+          // Columns of frames past the end of the last chunk hold earlier data: transformed, not
+          // read.
+          fft.forward_in_place();
+          for (int f = 0; f < count; ++f) {
+            for (int q = 0; q < per_frame; ++q) {
+              const std::complex<double>* spectrum =
+                  fft.output() + static_cast<std::ptrdiff_t>(f * per_frame + q) * fft.bins() + k_lo;
+              std::copy(spectrum, spectrum + bins, band[q].col(first + f).data());
+            }
+          }
         }
-      }
-      // Columns of frames past the end of the last chunk hold earlier data: transformed, not read.
-      fft.forward_in_place();
-      for (int f = 0; f < count; ++f) {
-        for (int q = 0; q < per_frame; ++q) {
-          const std::complex<double>* spectrum =
-              fft.output() + static_cast<std::ptrdiff_t>(f * per_frame + q) * fft.bins() + k_lo;
-          std::copy(spectrum, spectrum + bins, band[q].col(first + f).data());
-        }
-      }
-    }
-  });
+      });
 
   auto block = [&](int w, int ch) {
     Eigen::MatrixXcd out = std::move(band[(w * parts + 0) * channels + ch]);

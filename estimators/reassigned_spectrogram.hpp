@@ -30,16 +30,16 @@ struct TfSignal {
 
 struct ReassignedSpectrogramOptions {
   TfWindow window = TfWindow::kaiser(3.0);  ///< window shape h (Piovesan 2012: Kaiser, beta 3)
-  double window_s = 0.75;       ///< window length T, s (rounded to 2L + 1 samples)
-  double hop_s = 0.0025;        ///< time between frame centres, s (rounded to whole samples)
-  int fft_size = 0;             ///< FFT length N >= 2L + 1 (zero padding); 0 = next power of two
+  double window_s = 0.75;                   ///< window length T, s (rounded to 2L + 1 samples)
+  double hop_s = 0.0025;          ///< time between frame centres, s (rounded to whole samples)
+  int fft_size = 0;               ///< FFT length N >= 2L + 1 (zero padding); 0 = next power of two
   double min_frequency_hz = 0.0;  ///< lowest bin kept, Hz
   double max_frequency_hz = 0.0;  ///< highest bin kept, Hz; 0 = Nyquist
 };
 
 /// STFTs and reassignment operators. Bin k of frame m is
-/// X_h[k, m] = sum_n x[c_m + n] h[n] exp(-i 2 pi f_k n dt) (phase referred to the frame centre c_m),
-/// so a damped exponential c exp(lambda (t - t_m)) gives exactly c W(lambda - i 2 pi f_k)
+/// X_h[k, m] = sum_n x[c_m + n] h[n] exp(-i 2 pi f_k n dt) (phase referred to the frame centre
+/// c_m), so a damped exponential c exp(lambda (t - t_m)) gives exactly c W(lambda - i 2 pi f_k)
 /// (SampledWindow::transform). Reassignment (Auger & Flandrin 1995 eqs 41-42, with the local
 /// decay rate from the same ratio):
 ///   f^ = f_k - Im(X_dh / X_h) / (2 pi),  t^ = t_m + Re(X_th / X_h),  alpha^ = -Re(X_dh / X_h).
@@ -47,12 +47,12 @@ struct ReassignedSpectrogram {
   double sample_rate_hz = 0.0;  ///< Hz
   double hop_s = 0.0;           ///< s (whole samples)
   int hop_samples = 0;
-  int fft_size = 0;             ///< N
-  int first_bin = 0;            ///< FFT bin of frequency_hz(0)
+  int fft_size = 0;   ///< N
+  int first_bin = 0;  ///< FFT bin of frequency_hz(0)
   TfWindow window = TfWindow::kaiser(3.0);
-  int half_length = 0;          ///< L: the window has 2L + 1 samples, T = 2 L dt
+  int half_length = 0;                           ///< L: the window has 2L + 1 samples, T = 2 L dt
   std::shared_ptr<const SampledWindow> sampled;  ///< the sampled h and h' (shared, immutable)
-  bool analytic = false;        ///< the channels were analytic signals (no negative frequencies)
+  bool analytic = false;  ///< the channels were analytic signals (no negative frequencies)
 
   Eigen::VectorXd time_s;        ///< [T] frame centres, s
   Eigen::VectorXi centre;        ///< [T] frame centre sample indices
@@ -60,13 +60,13 @@ struct ReassignedSpectrogram {
   Eigen::VectorXi offset_hi;     ///< [T] last window offset used (<= L)
   Eigen::VectorXd frequency_hz;  ///< [F] bin frequencies, Hz
 
-  std::vector<Eigen::MatrixXcd> stft;             ///< [C] (F x T) X_h, channel units x samples
-  std::vector<Eigen::MatrixXcd> stft_time;        ///< [C] (F x T) X_th, units x s
-  std::vector<Eigen::MatrixXcd> stft_derivative;  ///< [C] (F x T) X_dh, units / s
-  std::vector<Eigen::MatrixXd> reassigned_time_s;       ///< [C] (F x T) t^, s
-  std::vector<Eigen::MatrixXd> reassigned_frequency_hz; ///< [C] (F x T) f^, Hz
-  std::vector<Eigen::MatrixXd> decay_rate_per_s;        ///< [C] (F x T) alpha^, 1/s (< 0: decay)
-  Eigen::MatrixXd power;             ///< (F x T) sum over channels of |X_h|^2
+  std::vector<Eigen::MatrixXcd> stft;              ///< [C] (F x T) X_h, channel units x samples
+  std::vector<Eigen::MatrixXcd> stft_time;         ///< [C] (F x T) X_th, units x s
+  std::vector<Eigen::MatrixXcd> stft_derivative;   ///< [C] (F x T) X_dh, units / s
+  std::vector<Eigen::MatrixXd> reassigned_time_s;  ///< [C] (F x T) t^, s
+  std::vector<Eigen::MatrixXd> reassigned_frequency_hz;  ///< [C] (F x T) f^, Hz
+  std::vector<Eigen::MatrixXd> decay_rate_per_s;         ///< [C] (F x T) alpha^, 1/s (< 0: decay)
+  Eigen::MatrixXd power;                                 ///< (F x T) sum over channels of |X_h|^2
   Eigen::MatrixXd reassigned_power;  ///< (F x T) |X_h|^2 summed at the bin and frame nearest to
                                      ///< (f^, t^), over channels: the reassigned spectrogram
 

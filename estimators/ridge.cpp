@@ -135,7 +135,6 @@ bool solve_reassignment(const SampledWindow::Cut& cut, double dt, cd r, cd& s) {
   return true;
 }
 
-
 struct FrameContext {
   const ReassignedSpectrogram& sg;
   const RidgeOptions& options;
@@ -302,8 +301,8 @@ enum class Chirp { none, fitted, held };
 /// noise per residual.
 bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centres, FrameFit& fit,
                   Chirp chirp_mode) {
-  const bool chirp = chirp_mode == Chirp::fitted;    // chirp rates among the unknowns
-  const bool chirped = chirp_mode != Chirp::none;    // transforms with the chirp rates
+  const bool chirp = chirp_mode == Chirp::fitted;  // chirp rates among the unknowns
+  const bool chirped = chirp_mode != Chirp::none;  // transforms with the chirp rates
   const ReassignedSpectrogram& sg = ctx.sg;
   const double dt = 1.0 / sg.sample_rate_hz;
   const SampledWindow::Cut cut = sg.frame_window(m);
@@ -352,8 +351,8 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centre
           if (chirped) {
             t[0] = SampledWindow::transform(chirped_cuts[j], dt, f.lambda[j] - kI * nu);
             if (images == 2) {  // the image's windows are those of conj(g)
-              t[1] = SampledWindow::transform(chirped_cuts[j], dt,
-                                              std::conj(f.lambda[j]) - kI * nu, true);
+              t[1] = SampledWindow::transform(chirped_cuts[j], dt, std::conj(f.lambda[j]) - kI * nu,
+                                              true);
             }
             continue;
           }
@@ -403,8 +402,12 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centre
             dd_dgq -= 0.5 * kI * cb * b.wdtt;
           }
           if (jac) {
-            const int cols[6] = {nl * j, nl * j + 1, nl * n + 2 * (j * channels + c),
-                                 nl * n + 2 * (j * channels + c) + 1, nl * j + 2, nl * j + 3};
+            const int cols[6] = {nl * j,
+                                 nl * j + 1,
+                                 nl * n + 2 * (j * channels + c),
+                                 nl * n + 2 * (j * channels + c) + 1,
+                                 nl * j + 2,
+                                 nl * j + 3};
             const cd dh[6] = {dh_dp, dh_dq, dh_dre, dh_dim, dh_dgp, dh_dgq};
             const cd dd[6] = {dd_dp, dd_dq, dd_dre, dd_dim, dd_dgp, dd_dgq};
             for (int q = 0; q < (chirp ? 6 : 4); ++q) {
@@ -457,10 +460,9 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centre
     // it (20 dB sigmoid trial: K within 1.1e-6, C 7.8e-6 relative), far below their noise.
     double relative_step = 0.0;
     for (int j = 0; j < n; ++j) {
-      const double lambda_step =
-          (std::abs(trial.lambda[j] - fit.lambda[j]) +
-           half_window_s * std::abs(trial.chirp[j] - fit.chirp[j])) /
-          std::abs(fit.lambda[j]);
+      const double lambda_step = (std::abs(trial.lambda[j] - fit.lambda[j]) +
+                                  half_window_s * std::abs(trial.chirp[j] - fit.chirp[j])) /
+                                 std::abs(fit.lambda[j]);
       const double size = fit.coef.row(j).cwiseAbs().maxCoeff();
       const double coef_step = (trial.coef.row(j) - fit.coef.row(j)).cwiseAbs().maxCoeff() / size;
       relative_step = std::max({relative_step, lambda_step, coef_step});
@@ -487,9 +489,9 @@ bool gauss_newton(const FrameContext& ctx, int m, const std::vector<int>& centre
     // White noise of variance S_cc per sample: E|X_h|^2 = S_cc sum h^2, E|X_dh|^2 = S_cc sum dh^2
     // (weighted by wd_weight^2), half of each in the real and the imaginary row.
     const double trace = ctx.options.noise_covariance.trace();
-    fit.noise_per_row =
-        trace * (cut.h.squaredNorm() + wd_weight * wd_weight * cut.dh.squaredNorm()) /
-        (4.0 * channels);
+    fit.noise_per_row = trace *
+                        (cut.h.squaredNorm() + wd_weight * wd_weight * cut.dh.squaredNorm()) /
+                        (4.0 * channels);
   }
   return std::isfinite(cost);
 }
@@ -615,9 +617,9 @@ void hold_chirp_rates(const FrameContext& ctx, std::vector<FrameFit>& fits,
   // to the frame's centre (at most stride / 2 hops; the fit describes the whole window), with its
   // flags.
   for (int m = 0; m < frames; ++m) {
-    const int p = std::clamp(static_cast<int>(std::lround(static_cast<double>(m - grid.front()) /
-                                                          stride)),
-                             0, points - 1);
+    const int p =
+        std::clamp(static_cast<int>(std::lround(static_cast<double>(m - grid.front()) / stride)), 0,
+                   points - 1);
     if (grid[p] == m) continue;
     FrameFit fit = fits[grid[p]];
     fit.transforms.clear();
@@ -703,10 +705,10 @@ void bridge_invalid_frames(RidgeResult& r) {
         const double omega = (1.0 - w) * w0 + w * w1;
         Eigen::VectorXcd a(channels);
         for (int c = 0; c < channels; ++c) {
-          const double log_a = (1.0 - w) * std::log(r.amplitude[j](m0, c)) +
-                               w * std::log(r.amplitude[j](m1, c));
-          const double phase = r.phase_rad[j](m0, c) + u * (w0 + 0.5 * (omega - w0)) +
-                               w * mismatch(c);
+          const double log_a =
+              (1.0 - w) * std::log(r.amplitude[j](m0, c)) + w * std::log(r.amplitude[j](m1, c));
+          const double phase =
+              r.phase_rad[j](m0, c) + u * (w0 + 0.5 * (omega - w0)) + w * mismatch(c);
           a(c) = std::polar(std::exp(log_a), phase);
         }
         set(m, omega, (1.0 - w) * a0 + w * a1, a);
@@ -724,8 +726,9 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
     throw InputError("ridge tracking: max jump must be positive and the penalty >= 0");
   }
   if (std::isnan(options.anr_floor_db)) {
-    throw InputError("ridge tracking: the amplitude-to-noise floor must be a number of dB (inf: "
-                     "no floor)");
+    throw InputError(
+        "ridge tracking: the amplitude-to-noise floor must be a number of dB (inf: "
+        "no floor)");
   }
   const double df = sg.sample_rate_hz / sg.fft_size;
   int band_lo = 0;
@@ -735,8 +738,8 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
   int band_hi = sg.bins() - 1;
   while (band_hi >= 0 && sg.frequency_hz(band_hi) > options.max_frequency_hz + 1e-9) --band_hi;
   if (band_hi - band_lo + 1 < n) {
-    throw InputError("ridge tracking: the band " + number_text(options.min_frequency_hz) +
-                     "-" + number_text(options.max_frequency_hz) + " Hz holds " +
+    throw InputError("ridge tracking: the band " + number_text(options.min_frequency_hz) + "-" +
+                     number_text(options.max_frequency_hz) + " Hz holds " +
                      std::to_string(std::max(0, band_hi - band_lo + 1)) + " bins of " +
                      number_text(df) + " Hz, fewer than the " + std::to_string(n) + " modes");
   }
@@ -766,8 +769,8 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
   auto try_chirped = [&](int m, const std::vector<int>& centres, FrameFit chirped, FrameFit& fit,
                          bool& ok) {
     if (!gauss_newton(ctx, m, centres, chirped, Chirp::fitted)) return;
-    if (ok && !(fit.cost - chirped.cost >
-                options.chirp_min_gain * 2.0 * n * chirped.noise_per_row)) {
+    if (ok &&
+        !(fit.cost - chirped.cost > options.chirp_min_gain * 2.0 * n * chirped.noise_per_row)) {
       return;
     }
     fit = std::move(chirped);
@@ -878,11 +881,13 @@ RidgeResult track_ridges(const ReassignedSpectrogram& sg, const RidgeOptions& op
       r.frequency_hz(m, j) = r.omega_rad_per_s(m, j) / (2.0 * M_PI);
       const double f = r.frequency_hz(m, j);
       r.valid(m, j) = fit.ok && !fit.degenerate && !fit.misfit &&
-                      std::isfinite(fit.lambda[j].real()) &&
-                      f >= options.min_frequency_hz && f <= options.max_frequency_hz;
+                      std::isfinite(fit.lambda[j].real()) && f >= options.min_frequency_hz &&
+                      f <= options.max_frequency_hz;
       r.decay_rate_per_s(m, j) = fit.ok ? fit.lambda[j].real() : nan;
       for (int c = 0; c < channels; ++c) {
-        const cd a = !fit.ok ? cd(nan, nan) : ctx.real_signal ? 2.0 * fit.coef(j, c) : fit.coef(j, c);
+        const cd a = !fit.ok           ? cd(nan, nan)
+                     : ctx.real_signal ? 2.0 * fit.coef(j, c)
+                                       : fit.coef(j, c);
         r.amplitude_c[j](m, c) = a;
         r.amplitude[j](m, c) = std::abs(a);
         r.phase_rad[j](m, c) = std::arg(a);

@@ -44,18 +44,18 @@ struct RidgeOptions {
                                        ///< variances per real residual, per added unknown
   double chirp_min_window_fraction = 0.9;  ///< pass 1 fits chirp rates only in windows at least
                                            ///< this fraction of the full length
-  double chirp_track_step_s = 0.01;    ///< frame fits about this far apart, s (at least every
-                                       ///< frame; the frames between carry the nearest fit)
-  double chirp_slope_window_s = 0.5;   ///< pass 2 holds the chirp rates at the slopes of pass 1's
-                                       ///< lambda tracks, Savitzky-Golay (order 2) over this, s
-  double max_misfit_fraction = 1e-3;   ///< validity, pass 2: a frame whose model misses more
-  double max_misfit_noise = 50.0;      ///< than this fraction of the data's sum of squares at
-                                       ///< the fit bins and more than max_misfit_noise expected
-                                       ///< noise variances per real residual is invalid
-  double max_mode_to_data_db = 6.0;    ///< validity: a mode's own part of the frame's STFT at the
-                                       ///< fit bins at most this far above the STFT's energy
-                                       ///< there, dB (more: modes cancelling each other; two
-                                       ///< modes in one main lobe reach 4 dB legitimately)
+  double chirp_track_step_s = 0.01;        ///< frame fits about this far apart, s (at least every
+                                           ///< frame; the frames between carry the nearest fit)
+  double chirp_slope_window_s = 0.5;  ///< pass 2 holds the chirp rates at the slopes of pass 1's
+                                      ///< lambda tracks, Savitzky-Golay (order 2) over this, s
+  double max_misfit_fraction = 1e-3;  ///< validity, pass 2: a frame whose model misses more
+  double max_misfit_noise = 50.0;     ///< than this fraction of the data's sum of squares at
+                                      ///< the fit bins and more than max_misfit_noise expected
+                                      ///< noise variances per real residual is invalid
+  double max_mode_to_data_db = 6.0;   ///< validity: a mode's own part of the frame's STFT at the
+                                      ///< fit bins at most this far above the STFT's energy
+                                      ///< there, dB (more: modes cancelling each other; two
+                                      ///< modes in one main lobe reach 4 dB legitimately)
 };
 
 /// Per-frame description of the modes. With lambda_j = alpha_j + i omega_j, the part of channel k

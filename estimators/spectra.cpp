@@ -137,8 +137,8 @@ CrossSpectra welch_cross_spectra(const Eigen::Ref<const Eigen::MatrixXd>& signal
   // padded. Chunking bounds memory (a 10-minute 1 kHz trial would otherwise hold ~80 MB of
   // spectra) and keeps the work in cache. Each of up to kSegmentGroups fixed groups of consecutive
   // segments sums its products in segment order, in parallel; the groups are then added in order.
-  const int chunk = std::clamp(kBatchSamples / (nfft * channels), 1,
-                               std::min(segments, kMaxChunkSegments));
+  const int chunk =
+      std::clamp(kBatchSamples / (nfft * channels), 1, std::min(segments, kMaxChunkSegments));
   const int groups = std::min(segments, kSegmentGroups);
   const int bins = nfft / 2 + 1;
   const int pairs = channels * (channels + 1) / 2;

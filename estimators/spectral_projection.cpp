@@ -30,8 +30,8 @@ SpectralProjection::SpectralProjection(const Eigen::Ref<const Eigen::MatrixXd>& 
                                        const Eigen::Ref<const Eigen::MatrixXd>& b)
     : tridiagonal_(a) {
   const Eigen::Index n = a.rows();
-  Eigen::VectorXd d = tridiagonal_.diagonal();     // T[k][k]
-  Eigen::VectorXd e = tridiagonal_.subDiagonal();  // T[k+1][k] = T[k][k+1]
+  Eigen::VectorXd d = tridiagonal_.diagonal();                 // T[k][k]
+  Eigen::VectorXd e = tridiagonal_.subDiagonal();              // T[k+1][k] = T[k][k+1]
   Eigen::MatrixXd p = tridiagonal_.matrixQ().transpose() * b;  // Z^T Q^T b as Z grows
   const double eps = std::numeric_limits<double>::epsilon();
   const long max_sweeps = 30 * static_cast<long>(std::max<Eigen::Index>(n, 1));

@@ -36,13 +36,13 @@ class SpectralProjection {
 
  private:
   struct Rotation {
-    int k;       // acts on rows k, k + 1
+    int k;        // acts on rows k, k + 1
     double c, s;  // G[k][k] = G[k+1][k+1] = c, G[k][k+1] = s, G[k+1][k] = -s
   };
   Status status_;
   Eigen::Tridiagonalization<Eigen::MatrixXd> tridiagonal_;  // A = Q T Q^T
-  std::vector<Rotation> rotations_;  // in the order made
-  std::vector<int> order_;           // order_[k]: QR-order index of the k-th smallest eigenvalue
+  std::vector<Rotation> rotations_;                         // in the order made
+  std::vector<int> order_;  // order_[k]: QR-order index of the k-th smallest eigenvalue
   Eigen::VectorXd eigenvalues_;
   Eigen::MatrixXd projections_;
 };

@@ -19,8 +19,10 @@ TfaMethod parse_tfa_method(const std::string& text) {
 
 std::string to_string(TfaMethod method) {
   switch (method) {
-    case TfaMethod::modal: return "modal";
-    case TfaMethod::spectrogram: return "spectrogram";
+    case TfaMethod::modal:
+      return "modal";
+    case TfaMethod::spectrogram:
+      return "spectrogram";
   }
   return "";
 }
@@ -85,8 +87,8 @@ void identify_modal(TfaResult& r, const TfaOptions& options) {
   // The noise window reaches back as far as the record allows (less a margin for the filter).
   const double available_s = dev.onset_s - dev.start_time_s - 0.05;
   if (available_s >= 0.1) mo.noise_window_s = std::min(mo.noise_window_s, available_s);
-  r.modes = fit_damped_modes(dev.deviation_rad, dev.sample_rate_hz, dev.start_time_s, dev.onset_s,
-                             mo);
+  r.modes =
+      fit_damped_modes(dev.deviation_rad, dev.sample_rate_hz, dev.start_time_s, dev.onset_s, mo);
   const DampedModesResult& fit = r.modes;
   r.analysis_rate_hz = fit.rate_hz;
   r.decimation = std::max(1, static_cast<int>(std::lround(dev.sample_rate_hz / fit.rate_hz)));
@@ -186,7 +188,8 @@ TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
 
   const int hop = std::max(1, static_cast<int>(std::lround(options.spectrogram.hop_s * fs)));
   int d = options.decimation;
-  if (d < 0) throw InputError("decimation factor must be >= 0 (0 = auto), got " + std::to_string(d));
+  if (d < 0)
+    throw InputError("decimation factor must be >= 0 (0 = auto), got " + std::to_string(d));
   if (d == 0) {
     d = 1;
     for (int c = hop; c >= 1; --c) {
@@ -209,22 +212,24 @@ TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
   if (dev.hilbert_rad.size() > 0) signal.imag = decimate(dev.hilbert_rad, fs, dec_options).samples;
   const double dt = 1.0 / real.sample_rate_hz;
   const double filter_s = d > 1 ? dec_options.half_taps_per_factor * d / fs : 0.0;
-  signal.begin = static_cast<int>(
-      std::ceil((dev.free_start_s + filter_s - dev.start_time_s) / dt - 1e-9));
+  signal.begin =
+      static_cast<int>(std::ceil((dev.free_start_s + filter_s - dev.start_time_s) / dt - 1e-9));
   signal.end = static_cast<int>(real.samples.rows()) - real.edge_samples;
   r.region_begin_s = dev.start_time_s + signal.begin * dt;
   r.region_end_s = dev.start_time_s + (signal.end - 1) * dt;
   if (signal.end - signal.begin < 1) {
-    throw InputError("the trial ends " + number_text(dev.start_time_s + dev.deviation_rad.rows() / fs - dev.free_start_s) +
-                     " s after the pulse: too short after the onset for one --window-s " +
-                     number_text(options.spectrogram.window_s) + " s window");
+    throw InputError(
+        "the trial ends " +
+        number_text(dev.start_time_s + dev.deviation_rad.rows() / fs - dev.free_start_s) +
+        " s after the pulse: too short after the onset for one --window-s " +
+        number_text(options.spectrogram.window_s) + " s window");
   }
 
   ReassignedSpectrogramOptions sg_options = options.spectrogram;
   sg_options.hop_s = hop / fs;
   if (sg_options.max_frequency_hz <= 0.0) {
-    sg_options.max_frequency_hz = std::min(0.5 * real.sample_rate_hz,
-                                           2.0 * options.ridges.max_frequency_hz);
+    sg_options.max_frequency_hz =
+        std::min(0.5 * real.sample_rate_hz, 2.0 * options.ridges.max_frequency_hz);
   }
   try {
     r.spectrogram = reassigned_spectrogram(signal, sg_options);
@@ -242,8 +247,8 @@ TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
   r.ridges = track_ridges(r.spectrogram, ridge_options);
 
   // Frame centres are whole input samples (centre * D), so the posture row is exact.
-  r.modal = modal_analysis(r.ridges, inertia_at(dev, options.arm, r.spectrogram.time_s),
-                           options.modal);
+  r.modal =
+      modal_analysis(r.ridges, inertia_at(dev, options.arm, r.spectrogram.time_s), options.modal);
   r.force = normalized_force(r.ridges, r.modal);
   r.status = r.modal.status;
   return r;

@@ -28,16 +28,16 @@ std::string to_string(TfaMethod method);
 
 struct TfaOptions {
   TfaMethod method = TfaMethod::modal;
-  DeviationOptions deviation;                 ///< stage 1
-  DampedModesOptions modes;                   ///< modal method: the fit (modes = angle channels)
-  ModalParametersOptions modal_parameters;    ///< modal method: K, C from the tracks
+  DeviationOptions deviation;               ///< stage 1
+  DampedModesOptions modes;                 ///< modal method: the fit (modes = angle channels)
+  ModalParametersOptions modal_parameters;  ///< modal method: K, C from the tracks
   int decimation = 0;  ///< keep every D-th sample before the STFT (zero-phase FIR); 0 = auto: the
                        ///< largest divisor of the hop (in samples) leaving >= 8 x the ridge band's
                        ///< top frequency as sample rate
-  ReassignedSpectrogramOptions spectrogram;   ///< stage 2 (band 0 = up to 2 x the ridge band top)
-  RidgeOptions ridges;                        ///< stage 3 (modes = number of angle channels)
-  ModalAnalysisOptions modal;                 ///< stages 4-5
-  models::ArmParameters arm;                  ///< inertia M(theta) of eq 9
+  ReassignedSpectrogramOptions spectrogram;  ///< stage 2 (band 0 = up to 2 x the ridge band top)
+  RidgeOptions ridges;                       ///< stage 3 (modes = number of angle channels)
+  ModalAnalysisOptions modal;                ///< stages 4-5
+  models::ArmParameters arm;                 ///< inertia M(theta) of eq 9
 };
 
 struct TfaResult {

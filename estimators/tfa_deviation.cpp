@@ -86,9 +86,9 @@ DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions
     r.onset_s = options.onset_s;
     pulse_end_s = r.onset_s + std::max(0.0, options.pulse_s);
     if (!std::isfinite(r.onset_s) || r.onset_s < trial.start_time_s || r.onset_s >= t_end) {
-      throw InputError("--onset " + number_text(options.onset_s) + " s is outside " +
-                       where(trial) + " (" + number_text(trial.start_time_s) + " to " +
-                       number_text(t_end) + " s)");
+      throw InputError("--onset " + number_text(options.onset_s) + " s is outside " + where(trial) +
+                       " (" + number_text(trial.start_time_s) + " to " + number_text(t_end) +
+                       " s)");
     }
   }
   if (pulse_end_s >= t_end) {
@@ -97,7 +97,8 @@ DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions
                      where(trial) + " (" + number_text(t_end) + " s): no free response");
   }
   const int onset = static_cast<int>(std::ceil((r.onset_s - trial.start_time_s) / dt - 1e-9));
-  int first_row = std::max(0, onset - static_cast<int>(std::lround(std::max(0.0, options.lead_s) / dt)));
+  int first_row =
+      std::max(0, onset - static_cast<int>(std::lround(std::max(0.0, options.lead_s) / dt)));
   if (baseline != nullptr) {  // the lead reaches back only as far as the baseline
     const long covered = std::lround((baseline->start_time_s - trial.start_time_s) / dt);
     first_row = std::min(onset, std::max<int>(first_row, static_cast<int>(covered)));
@@ -116,8 +117,7 @@ DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions
     const Eigen::RowVectorXd posture = angles.middleRows(onset - pre, pre).colwise().mean();
     r.posture_rad = posture.replicate(rows, 1);
   } else {
-    if (std::abs(baseline->sample_rate_hz - trial.sample_rate_hz) >
-        1e-9 * trial.sample_rate_hz) {
+    if (std::abs(baseline->sample_rate_hz - trial.sample_rate_hz) > 1e-9 * trial.sample_rate_hz) {
       throw InputError("--baseline " + where(*baseline) + ": sample rate " +
                        number_text(baseline->sample_rate_hz) + " Hz differs from the trial's " +
                        number_text(trial.sample_rate_hz) + " Hz");

@@ -27,14 +27,15 @@ struct DeviationOptions {
 };
 
 struct DeviationResult {
-  double sample_rate_hz = 0.0;   ///< Hz
-  double start_time_s = 0.0;     ///< time of row 0: the onset sample, or up to lead_s before, s
-  double onset_s = 0.0;          ///< onset used, s
-  double free_start_s = 0.0;     ///< end of the pulse: the free response starts here, s
+  double sample_rate_hz = 0.0;  ///< Hz
+  double start_time_s = 0.0;    ///< time of row 0: the onset sample, or up to lead_s before, s
+  double onset_s = 0.0;         ///< onset used, s
+  double free_start_s = 0.0;    ///< end of the pulse: the free response starts here, s
   std::vector<std::string> channels;  ///< [n] angle channel names
-  Eigen::MatrixXd deviation_rad;  ///< (S' x n) delta theta from start_time_s to the end of the trial
-  Eigen::MatrixXd hilbert_rad;    ///< (S' x n) H[delta theta] when analytic, else empty
-  Eigen::MatrixXd posture_rad;    ///< (S' x n) unperturbed angles theta_0(t)
+  Eigen::MatrixXd
+      deviation_rad;            ///< (S' x n) delta theta from start_time_s to the end of the trial
+  Eigen::MatrixXd hilbert_rad;  ///< (S' x n) H[delta theta] when analytic, else empty
+  Eigen::MatrixXd posture_rad;  ///< (S' x n) unperturbed angles theta_0(t)
 };
 
 /// Deviations from `baseline` (a trial with the same angle channels and rate covering the trial's

@@ -19,8 +19,10 @@ TfWindow TfWindow::kaiser(double beta) {
 
 TfWindow TfWindow::gaussian(double sigma_fraction) {
   if (!(sigma_fraction > 0.0 && sigma_fraction <= 10.0)) {
-    throw InputError("Gaussian window: sigma (fraction of the window length) must be in (0, 10], "
-                     "got " + std::to_string(sigma_fraction));
+    throw InputError(
+        "Gaussian window: sigma (fraction of the window length) must be in (0, 10], "
+        "got " +
+        std::to_string(sigma_fraction));
   }
   return TfWindow(Kind::gaussian, sigma_fraction);
 }
@@ -51,9 +53,12 @@ TfWindow TfWindow::parse(const std::string& text, const std::string& flag) {
 
 std::string TfWindow::name() const {
   switch (kind_) {
-    case Kind::kaiser: return "kaiser:" + std::to_string(parameter_);
-    case Kind::hann: return "hann";
-    case Kind::gaussian: return "gaussian:" + std::to_string(parameter_);
+    case Kind::kaiser:
+      return "kaiser:" + std::to_string(parameter_);
+    case Kind::hann:
+      return "hann";
+    case Kind::gaussian:
+      return "gaussian:" + std::to_string(parameter_);
   }
   return "";
 }
@@ -62,9 +67,11 @@ double TfWindow::value(double x) const {
   switch (kind_) {
     case Kind::kaiser: {
       const double r = std::sqrt(std::max(0.0, 1.0 - x * x));
-      return boost::math::cyl_bessel_i(0, parameter_ * r) / boost::math::cyl_bessel_i(0, parameter_);
+      return boost::math::cyl_bessel_i(0, parameter_ * r) /
+             boost::math::cyl_bessel_i(0, parameter_);
     }
-    case Kind::hann: return 0.5 + 0.5 * std::cos(M_PI * x);
+    case Kind::hann:
+      return 0.5 + 0.5 * std::cos(M_PI * x);
     case Kind::gaussian: {
       const double z = x / (2.0 * parameter_);  // u / (sigma T) with u = x T / 2
       return std::exp(-0.5 * z * z);
@@ -76,14 +83,15 @@ double TfWindow::value(double x) const {
 double TfWindow::slope(double x) const {
   switch (kind_) {
     case Kind::kaiser: {
-      // d/dx I0(beta r) = beta I1(beta r) dr/dx, dr/dx = -x / r; I1(beta r) / r -> beta / 2 at r = 0.
+      // d/dx I0(beta r) = beta I1(beta r) dr/dx, dr/dx = -x / r; I1(beta r) / r -> beta / 2 at r =
+      // 0.
       const double beta = parameter_;
       const double r = std::sqrt(std::max(0.0, 1.0 - x * x));
-      const double i1_over_r =
-          r < 1e-8 ? beta / 2.0 : boost::math::cyl_bessel_i(1, beta * r) / r;
+      const double i1_over_r = r < 1e-8 ? beta / 2.0 : boost::math::cyl_bessel_i(1, beta * r) / r;
       return -beta * x * i1_over_r / boost::math::cyl_bessel_i(0, beta);
     }
-    case Kind::hann: return -0.5 * M_PI * std::sin(M_PI * x);
+    case Kind::hann:
+      return -0.5 * M_PI * std::sin(M_PI * x);
     case Kind::gaussian: {
       const double s2 = 4.0 * parameter_ * parameter_;
       return -x / s2 * std::exp(-0.5 * x * x / s2);
@@ -160,9 +168,8 @@ inline GeometricLanes geometric_lanes(std::complex<double> s, double step_s, int
 // Built for AVX2 too (chosen at load time on machines that have it): the four-lane sums are one
 // instruction each instead of two. No FMA (not in the "avx2" target), so both builds round alike
 // and the results are the same bits on any machine.
-__attribute__((target_clones("avx2", "default")))
-SampledWindow::Transform SampledWindow::transform(const Cut& cut, double step_s,
-                                                  std::complex<double> s) {
+__attribute__((target_clones("avx2", "default"))) SampledWindow::Transform SampledWindow::transform(
+    const Cut& cut, double step_s, std::complex<double> s) {
   // exp(s (lo + i) dt) as four interleaved geometric sequences stepping by r^4 (independent
   // multiply chains, real arithmetic in four lanes: this sum is the spectrogram method's inner
   // loop), then the remaining 0-3 terms. Lane q sums the terms i = q mod 4.
@@ -217,7 +224,7 @@ SampledWindow::Transform SampledWindow::transform(const Cut& cut, double step_s,
 }
 
 SampledWindow::ChirpedCut SampledWindow::chirped(const Cut& cut, double step_s,
-                                                  std::complex<double> g, bool moments) {
+                                                 std::complex<double> g, bool moments) {
   using cd = std::complex<double>;
   ChirpedCut c;
   c.lo = cut.lo;
@@ -233,8 +240,7 @@ SampledWindow::ChirpedCut SampledWindow::chirped(const Cut& cut, double step_s,
   const cd ratio_step = std::exp(g * step_s * step_s);
   for (int i = 0; i < len; ++i) {
     const double u = (cut.lo + i) * step_s;
-    const double w[6] = {cut.h(i),  cut.dh(i),      cut.th(i),
-                         cut.tdh(i), u * cut.th(i), u * cut.tdh(i)};
+    const double w[6] = {cut.h(i), cut.dh(i), cut.th(i), cut.tdh(i), u * cut.th(i), u * cut.tdh(i)};
     for (int k = 0; k < c.windows; ++k) {
       c.re(i, k) = w[k] * e.real();
       c.im(i, k) = w[k] * e.imag();
@@ -249,9 +255,9 @@ namespace {
 // The sums of SampledWindow::transform(ChirpedCut) for WINDOWS complex windows (their
 // conjugates when SIGN is -1), in four lanes.
 template <int kWindows, int kSign>
-__attribute__((target_clones("avx2", "default")))
-void chirped_sums(const SampledWindow::ChirpedCut& cut, double step_s, std::complex<double> s,
-                  std::complex<double>* out) {
+__attribute__((target_clones("avx2", "default"))) void chirped_sums(
+    const SampledWindow::ChirpedCut& cut, double step_s, std::complex<double> s,
+    std::complex<double>* out) {
   using cd = std::complex<double>;
   const GeometricLanes lanes = geometric_lanes(s, step_s, cut.lo);
   const cd ratio = lanes.ratio, ratio4 = lanes.ratio4;

@@ -33,7 +33,7 @@ class TfWindow {
 
   Kind kind() const { return kind_; }
   double parameter() const { return parameter_; }  ///< Kaiser beta or Gaussian sigma fraction
-  std::string name() const;                         ///< canonical text form, accepted by parse
+  std::string name() const;                        ///< canonical text form, accepted by parse
 
   /// h(u) for x = 2u/T in [-1, 1] (dimensionless).
   double value(double x) const;
@@ -49,8 +49,8 @@ class TfWindow {
 /// Discrete windows of odd length 2L + 1 at sampling step dt (s), offsets n = -L..L from the frame
 /// centre, window length T = 2 L dt. Sampled with trapezoid end weights so that discrete sums are
 /// second-order accurate approximations of the continuous integrals (Euler-Maclaurin); the
-/// derivative window adds the edge steps h(edge)/dt as Dirac terms, so that for x(t) = exp(lambda t)
-/// sum_n x[c+n] dh[n] exp(-i nu n dt) = -(lambda - i nu) sum_n x[c+n] h[n] exp(-i nu n dt) up to
+/// derivative window adds the edge steps h(edge)/dt as Dirac terms, so that for x(t) = exp(lambda
+/// t) sum_n x[c+n] dh[n] exp(-i nu n dt) = -(lambda - i nu) sum_n x[c+n] h[n] exp(-i nu n dt) up to
 /// O(dt^2), whether or not h vanishes at its edges (the Kaiser window does not).
 class SampledWindow {
  public:
@@ -64,10 +64,10 @@ class SampledWindow {
   /// lo and hi in the derivative window. Vectors of length hi - lo + 1, index 0 = offset lo.
   struct Cut {
     int lo = 0, hi = 0;
-    Eigen::VectorXd h;   ///< window, dimensionless
-    Eigen::VectorXd th;  ///< time-weighted window n dt h[n], s
-    Eigen::VectorXd dh;  ///< derivative window dh/du with edge steps, 1/s
-    Eigen::VectorXd tdh; ///< time-weighted derivative window n dt dh[n], dimensionless
+    Eigen::VectorXd h;    ///< window, dimensionless
+    Eigen::VectorXd th;   ///< time-weighted window n dt h[n], s
+    Eigen::VectorXd dh;   ///< derivative window dh/du with edge steps, 1/s
+    Eigen::VectorXd tdh;  ///< time-weighted derivative window n dt dh[n], dimensionless
   };
   Cut cut(int lo, int hi) const;
 

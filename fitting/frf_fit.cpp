@@ -27,7 +27,8 @@ bool all_finite(const ceres::Jet<double, N>& x) {
 // False when a matrix overflows (log-diagonal entries of hundreds: the solves would turn the
 // infinities into NaN derivatives).
 template <typename T>
-bool compliance(LumpedModel model, const T* theta, int n, double omega, Dense<T>& hr, Dense<T>& hi) {
+bool compliance(LumpedModel model, const T* theta, int n, double omega, Dense<T>& hr,
+                Dense<T>& hi) {
   const std::vector<SmallMatrix<T>> m = theta_to_matrices(theta, model, n);
   for (const SmallMatrix<T>& a : m) {
     for (Eigen::Index i = 0; i < a.size(); ++i) {
@@ -90,8 +91,8 @@ const nlohmann::json& at(const nlohmann::json& j, const std::string& key, const 
   return data::json_member(j, key, path, where, "the JSON of stiffid frf");
 }
 
-std::vector<double> numbers(const nlohmann::json& j, const std::string& path, const std::string& key,
-                            std::size_t size) {
+std::vector<double> numbers(const nlohmann::json& j, const std::string& path,
+                            const std::string& key, std::size_t size) {
   return data::json_numbers(j, path, key, size);
 }
 
@@ -125,14 +126,17 @@ FrfTarget read_frf_json(const std::string& path) {
   const nlohmann::json& multiple = at(at(j, "coherence", path, ""), "multiple", path, "coherence.");
   for (int r = 0; r < n; ++r) {
     const std::string& out = t.outputs[r];
-    const std::vector<double> c =
-        numbers(at(multiple, out, path, "coherence.multiple."), path, "coherence.multiple." + out, count);
+    const std::vector<double> c = numbers(at(multiple, out, path, "coherence.multiple."), path,
+                                          "coherence.multiple." + out, count);
     for (std::size_t k = 0; k < count; ++k) t.coherence(static_cast<Eigen::Index>(k), r) = c[k];
     for (int i = 0; i < n; ++i) {
       const std::string key = "frf." + out + "." + t.inputs[i];
-      const nlohmann::json& h = at(at(frf, out, path, "frf."), t.inputs[i], path, "frf." + out + ".");
-      const std::vector<double> re = numbers(at(h, "re", path, key + "."), path, key + ".re", count);
-      const std::vector<double> im = numbers(at(h, "im", path, key + "."), path, key + ".im", count);
+      const nlohmann::json& h =
+          at(at(frf, out, path, "frf."), t.inputs[i], path, "frf." + out + ".");
+      const std::vector<double> re =
+          numbers(at(h, "re", path, key + "."), path, key + ".re", count);
+      const std::vector<double> im =
+          numbers(at(h, "im", path, key + "."), path, key + ".im", count);
       for (std::size_t k = 0; k < count; ++k) t.compliance[k](r, i) = {re[k], im[k]};
     }
   }
@@ -145,7 +149,8 @@ Eigen::MatrixXcd model_compliance(LumpedModel model, const Eigen::VectorXd& thet
   if (!compliance(model, theta.data(), n, 2.0 * M_PI * frequency_hz, hr, hi)) {
     return Eigen::MatrixXcd::Constant(n, n, std::numeric_limits<double>::quiet_NaN());
   }
-  return hr.cast<std::complex<double>>() + std::complex<double>(0.0, 1.0) * hi.cast<std::complex<double>>();
+  return hr.cast<std::complex<double>>() +
+         std::complex<double>(0.0, 1.0) * hi.cast<std::complex<double>>();
 }
 
 namespace {
@@ -172,8 +177,9 @@ std::map<std::string, StartRange> default_frf_ranges(LumpedModel model, const Fr
   const double w_lo = 2.0 * M_PI * t.frequency_hz(used.front());
   const double w_hi = 2.0 * M_PI * t.frequency_hz(used.back());
   const double k_ref = mean_abs_diagonal(stiffness_at(used.front()).cwiseAbs());
-  const double i_ref = std::max(mean_abs_diagonal(stiffness_at(used.back()).cwiseAbs()) / (w_hi * w_hi),
-                                1e-12 * k_ref / (w_lo * w_lo));
+  const double i_ref =
+      std::max(mean_abs_diagonal(stiffness_at(used.back()).cwiseAbs()) / (w_hi * w_hi),
+               1e-12 * k_ref / (w_lo * w_lo));
   int peak = used.front();
   for (int k : used) {
     if (t.compliance[k].cwiseAbs().maxCoeff() > t.compliance[peak].cwiseAbs().maxCoeff()) peak = k;
@@ -196,11 +202,12 @@ std::map<std::string, StartRange> default_frf_ranges(LumpedModel model, const Fr
 
 LumpedFitResult fit_frf(const FrfTarget& t, const FrfFitOptions& o) {
   if (o.model == LumpedModel::duffing) {
-    throw InputError("fit duffing --frf: the Duffing model is nonlinear and has no frequency "
-                     "response; an FRF measured at one excitation level only holds its "
-                     "equivalent linear stiffness (K + 3 B E[x^2] for Gaussian motion), which "
-                     "does not separate K from B: fit it to a trial (TRIAL.csv --inputs "
-                     "--outputs) or to a tfa free response (--tfa)");
+    throw InputError(
+        "fit duffing --frf: the Duffing model is nonlinear and has no frequency "
+        "response; an FRF measured at one excitation level only holds its "
+        "equivalent linear stiffness (K + 3 B E[x^2] for Gaussian motion), which "
+        "does not separate K from B: fit it to a trial (TRIAL.csv --inputs "
+        "--outputs) or to a tfa free response (--tfa)");
   }
   if (o.starts < 1) throw InputError("--starts: expected at least 1");
   if (o.max_iterations < 1) throw InputError("--max-iterations: expected at least 1");
@@ -220,7 +227,8 @@ LumpedFitResult fit_frf(const FrfTarget& t, const FrfFitOptions& o) {
   for (int k : used) scale += t.compliance[k].rowwise().squaredNorm().real();
   for (int j = 0; j < n; ++j) {
     scale(j) = std::sqrt(scale(j) / static_cast<double>(used.size()));
-    if (!(scale(j) > 0.0)) throw InputError(t.source + ": output " + t.outputs[j] + " has a zero FRF");
+    if (!(scale(j) > 0.0))
+      throw InputError(t.source + ": output " + t.outputs[j] + " has a zero FRF");
   }
   // One residual term per used frequency, built once for the finiteness check of the starts,
   // every local solve and the covariance.
@@ -239,8 +247,8 @@ LumpedFitResult fit_frf(const FrfTarget& t, const FrfFitOptions& o) {
 
   auto build = [&](ceres::Problem& problem, Eigen::VectorXd& theta) {
     for (const FrequencyResidual& term : residuals) {
-      auto* cost = new ceres::DynamicAutoDiffCostFunction<FrequencyResidual, 8>(
-          new FrequencyResidual(term));
+      auto* cost =
+          new ceres::DynamicAutoDiffCostFunction<FrequencyResidual, 8>(new FrequencyResidual(term));
       cost->AddParameterBlock(p);
       cost->SetNumResiduals(2 * n * n);
       problem.AddResidualBlock(cost, nullptr, theta.data());
@@ -320,8 +328,7 @@ LumpedFitResult fit_frf(const FrfTarget& t, const FrfFitOptions& o) {
   ceres::Problem problem;
   Eigen::VectorXd theta = result.theta;
   build(problem, theta);
-  set_parameters(result, problem, {theta.data()},
-                 static_cast<double>(used.size() * 2 * n * n) - p);
+  set_parameters(result, problem, {theta.data()}, static_cast<double>(used.size() * 2 * n * n) - p);
   if (result.status.ok && !result.standard_errors_ok) {
     result.status.message = "standard errors unavailable: the Jacobian is rank deficient";
   }

@@ -39,13 +39,13 @@ FrfTarget read_frf_json(const std::string& path);
 
 struct FrfFitOptions {
   LumpedModel model = LumpedModel::kelvin_voigt;
-  int starts = 16;                     ///< box centre + Latin hypercube (seeded)
+  int starts = 16;  ///< box centre + Latin hypercube (seeded)
   std::uint64_t seed = 0;
   std::map<std::string, StartRange> ranges;  ///< start box per matrix; default from the FRF
-  double band_low_hz = 0.0;            ///< frequencies used, Hz (inclusive); 0 Hz never used
+  double band_low_hz = 0.0;                  ///< frequencies used, Hz (inclusive); 0 Hz never used
   double band_high_hz = std::numeric_limits<double>::infinity();
-  double min_coherence = 0.5;          ///< frequencies where an output's multiple coherence is
-                                       ///< lower are left out for that output
+  double min_coherence = 0.5;  ///< frequencies where an output's multiple coherence is
+                               ///< lower are left out for that output
   int max_iterations = 200;
 };
 

@@ -23,14 +23,14 @@ using Jet = ceres::Jet<double, kStride>;
 struct FitData {
   LumpedModel model;
   InputHold hold;
-  int n = 0;                        // DOF
-  int state = 0;                    // state size
-  int params = 0;                   // theta size
+  int n = 0;       // DOF
+  int state = 0;   // state size
+  int params = 0;  // theta size
   double dt_s = 0.0;
-  const Eigen::MatrixXd* inputs;    // S x n, N
-  const Eigen::MatrixXd* outputs;   // S x n, m
-  Eigen::VectorXd output_weight;    // [n] 1 / RMS(x_j), 1/m
-  Eigen::VectorXd state_weight;     // [state] 1/RMS of x, x' (and q as x)
+  const Eigen::MatrixXd* inputs;   // S x n, N
+  const Eigen::MatrixXd* outputs;  // S x n, m
+  Eigen::VectorXd output_weight;   // [n] 1 / RMS(x_j), 1/m
+  Eigen::VectorXd state_weight;    // [state] 1/RMS of x, x' (and q as x)
 };
 
 /// Residuals of one multiple-shooting segment [first, last]: weighted data residuals
@@ -41,8 +41,12 @@ class SegmentCost final : public ceres::CostFunction {
  public:
   SegmentCost(const FitData& data, int first, int last, bool has_next, double continuity_weight,
               int substeps)
-      : data_(data), first_(first), last_(last), has_next_(has_next),
-        continuity_weight_(continuity_weight), substeps_(substeps) {
+      : data_(data),
+        first_(first),
+        last_(last),
+        has_next_(has_next),
+        continuity_weight_(continuity_weight),
+        substeps_(substeps) {
     mutable_parameter_block_sizes()->push_back(data.params);
     mutable_parameter_block_sizes()->push_back(data.state);
     if (has_next) mutable_parameter_block_sizes()->push_back(data.state);
@@ -68,7 +72,10 @@ class SegmentCost final : public ceres::CostFunction {
       for (int i = 0; i < s; ++i) z[i] = Jet(parameters[1][i]);
       for (int k = 0; k < kStride && begin + k < total; ++k) {
         const int v = begin + k;
-        if (v < p) theta[v].v[k] = 1.0; else z[v - p].v[k] = 1.0;
+        if (v < p)
+          theta[v].v[k] = 1.0;
+        else
+          z[v - p].v[k] = 1.0;
       }
       run<Jet>(theta.data(), z.data(), parameters, out.data());
       for (int r = 0; r < rows; ++r) {
@@ -115,14 +122,14 @@ class SegmentCost final : public ceres::CostFunction {
     for (int i = 0; i < data_.state; ++i) z0(i) = z_first[i];
     const int data_end = has_next_ ? last_ - 1 : last_;
     const Eigen::MatrixXd& y = *data_.outputs;
-    const SmallVector<T> z_end = simulate_rk4<T>(
-        dyn, g, first_, last_, z0, data_.dt_s, substeps_, data_.hold,
-        [&](int i, const SmallVector<T>& z) {
-          if (i > data_end) return;
-          for (int j = 0; j < n; ++j) {
-            out[(i - first_) * n + j] = (z(j) - y(i, j)) * data_.output_weight(j);
-          }
-        });
+    const SmallVector<T> z_end = simulate_rk4<T>(dyn, g, first_, last_, z0, data_.dt_s, substeps_,
+                                                 data_.hold, [&](int i, const SmallVector<T>& z) {
+                                                   if (i > data_end) return;
+                                                   for (int j = 0; j < n; ++j) {
+                                                     out[(i - first_) * n + j] =
+                                                         (z(j) - y(i, j)) * data_.output_weight(j);
+                                                   }
+                                                 });
     if (has_next_) {
       const double* z_next = parameters[2];
       const int d = data_rows();
@@ -172,8 +179,8 @@ double fastest_rate(LumpedModel model, const Eigen::VectorXd& theta, int n, doub
   return std::max(std::sqrt(top(k, inertia)), top(m[1], inertia));
 }
 
-int automatic_substeps(const LumpedFitOptions& o, const Eigen::VectorXd& theta, int n,
-                       double dt_s, double x_max_m, double target) {
+int automatic_substeps(const LumpedFitOptions& o, const Eigen::VectorXd& theta, int n, double dt_s,
+                       double x_max_m, double target) {
   if (o.substeps > 0) return o.substeps;
   const double rate = fastest_rate(o.model, theta, n, x_max_m);
   const double steps = std::ceil(dt_s * rate / target);
@@ -205,7 +212,8 @@ Segments make_segments(int samples, double rate_hz, double segment_s, int state)
     while (k > 1 && (samples - 1) / k < 2 * state) --k;
   }
   for (int i = 0; i <= k; ++i) {
-    seg.bounds.push_back(static_cast<int>(std::llround(static_cast<double>(i) * (samples - 1) / k)));
+    seg.bounds.push_back(
+        static_cast<int>(std::llround(static_cast<double>(i) * (samples - 1) / k)));
   }
   return seg;
 }
@@ -222,11 +230,10 @@ void build_problem(ceres::Problem& problem, const FitData& data, const Segments&
                    int substeps) {
   for (int k = 0; k < seg.count(); ++k) {
     const bool has_next = k + 1 < seg.count();
-    auto* cost = new SegmentCost(data, seg.bounds[k], seg.bounds[k + 1], has_next, weight,
-                                 substeps);
+    auto* cost =
+        new SegmentCost(data, seg.bounds[k], seg.bounds[k + 1], has_next, weight, substeps);
     if (has_next) {
-      problem.AddResidualBlock(cost, nullptr, theta.data(), states[k].data(),
-                               states[k + 1].data());
+      problem.AddResidualBlock(cost, nullptr, theta.data(), states[k].data(), states[k + 1].data());
     } else {
       problem.AddResidualBlock(cost, nullptr, theta.data(), states[k].data());
     }
@@ -317,9 +324,9 @@ StartSolution solve_start(const FitData& data, const Segments& seg, const Lumped
     if (needed == sol.substeps || stage >= weight_stages + 3) break;
     sol.substeps = needed;
   }
-  sol.cost = sol.theta.allFinite() ? data_cost(data, seg, sol.theta, sol.states, sol.substeps,
-                                               nullptr)
-                                   : std::numeric_limits<double>::infinity();
+  sol.cost = sol.theta.allFinite()
+                 ? data_cost(data, seg, sol.theta, sol.states, sol.substeps, nullptr)
+                 : std::numeric_limits<double>::infinity();
   if (!std::isfinite(sol.cost)) sol.cost = std::numeric_limits<double>::infinity();
   return sol;
 }
@@ -343,8 +350,8 @@ void validate(const Eigen::MatrixXd& u, const Eigen::MatrixXd& y, double rate_hz
     throw InputError("sample rate: expected a positive number of Hz");
   }
   if (u.cols() < 1 || u.cols() > kMaxDof) {
-    throw InputError("--inputs: expected 1 to " + std::to_string(kMaxDof) + " force channels, got " +
-                     std::to_string(u.cols()));
+    throw InputError("--inputs: expected 1 to " + std::to_string(kMaxDof) +
+                     " force channels, got " + std::to_string(u.cols()));
   }
   if (y.cols() != u.cols()) {
     throw InputError("--outputs: expected as many displacement channels as --inputs (" +
@@ -359,8 +366,10 @@ void validate(const Eigen::MatrixXd& u, const Eigen::MatrixXd& y, double rate_hz
   check_finite(u, "--inputs");
   check_finite(y, "--outputs");
   for (int j = 0; j < n; ++j) {
-    if (rms(u.col(j)) == 0.0) throw InputError("--inputs: column " + std::to_string(j + 1) + " is all zero");
-    if (rms(y.col(j)) == 0.0) throw InputError("--outputs: column " + std::to_string(j + 1) + " is all zero");
+    if (rms(u.col(j)) == 0.0)
+      throw InputError("--inputs: column " + std::to_string(j + 1) + " is all zero");
+    if (rms(y.col(j)) == 0.0)
+      throw InputError("--outputs: column " + std::to_string(j + 1) + " is all zero");
   }
   if (o.starts < 1) throw InputError("--starts: expected at least 1");
   if (o.max_iterations < 1) throw InputError("--max-iterations: expected at least 1");
@@ -381,7 +390,6 @@ void validate(const Eigen::MatrixXd& u, const Eigen::MatrixXd& y, double rate_hz
     }
   }
 }
-
 
 }  // namespace
 
@@ -438,8 +446,8 @@ void set_parameters(LumpedFitResult& result, ceres::Problem& problem,
                     const std::vector<double*>& blocks, double dof_left) {
   const int n = result.dof;
   const int p_theta = static_cast<int>(result.theta.size());
-  Eigen::MatrixXd cov_theta = Eigen::MatrixXd::Constant(p_theta, p_theta,
-                                                        std::numeric_limits<double>::quiet_NaN());
+  Eigen::MatrixXd cov_theta =
+      Eigen::MatrixXd::Constant(p_theta, p_theta, std::numeric_limits<double>::quiet_NaN());
   result.standard_errors_ok = false;
   ceres::Problem::EvaluateOptions eo;
   eo.parameter_blocks = blocks;
@@ -453,7 +461,8 @@ void set_parameters(LumpedFitResult& result, ceres::Problem& problem,
     // (J^T J)^-1 from the SVD of the column-scaled Jacobian: the columns differ by many orders
     // of magnitude (B in N/m^3 against log-diagonals), which scaling removes before the rank test.
     Eigen::VectorXd scale = jac.colwise().norm().transpose();
-    for (Eigen::Index c = 0; c < scale.size(); ++c) scale(c) = scale(c) > 0.0 ? 1.0 / scale(c) : 1.0;
+    for (Eigen::Index c = 0; c < scale.size(); ++c)
+      scale(c) = scale(c) > 0.0 ? 1.0 / scale(c) : 1.0;
     jac = jac * scale.asDiagonal();
     Eigen::BDCSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeThinV);
     const Eigen::VectorXd sv = svd.singularValues();
@@ -476,9 +485,10 @@ void set_parameters(LumpedFitResult& result, ceres::Problem& problem,
     FittedMatrix fm{layout[a].name, layout[a].unit, mats[a], Eigen::MatrixXd(n, n)};
     for (int r = 0; r < n; ++r) {
       for (int c = 0; c < n; ++c) {
-        fm.std_error(r, c) = result.standard_errors_ok
-                                 ? std::sqrt(std::max(0.0, var(static_cast<int>(a) * n * n + r * n + c)))
-                                 : std::numeric_limits<double>::quiet_NaN();
+        fm.std_error(r, c) =
+            result.standard_errors_ok
+                ? std::sqrt(std::max(0.0, var(static_cast<int>(a) * n * n + r * n + c)))
+                : std::numeric_limits<double>::quiet_NaN();
       }
     }
     result.parameters.push_back(fm);
@@ -492,7 +502,9 @@ std::map<std::string, StartRange> default_ranges(LumpedModel model, const Eigen:
   const Eigen::MatrixXd a = differentiate(v, dt);
   const double f = rms(u), x = rms(y), xd = rms(v), xdd = rms(a);
   const double x3 = rms(y.array().cube().matrix());
-  auto box = [](double ref, double below, double above) { return StartRange{ref / below, ref * above}; };
+  auto box = [](double ref, double below, double above) {
+    return StartRange{ref / below, ref * above};
+  };
   std::map<std::string, StartRange> r;
   r["I"] = box(f / xdd, 10.0, 10.0);
   if (model == LumpedModel::poynting_thomson) {
@@ -518,10 +530,9 @@ Eigen::MatrixXd simulate_lumped(LumpedModel model, const Eigen::VectorXd& theta,
   }
   Eigen::MatrixXd out(inputs_n.rows(), n);
   const SmallVector<double> z = z0;
-  simulate_rk4<double>(dyn, g, 0, static_cast<int>(inputs_n.rows()) - 1, z, 1.0 / sample_rate_hz,
-                       substeps, hold, [&](int i, const SmallVector<double>& s) {
-                         out.row(i) = s.head(n).transpose();
-                       });
+  simulate_rk4<double>(
+      dyn, g, 0, static_cast<int>(inputs_n.rows()) - 1, z, 1.0 / sample_rate_hz, substeps, hold,
+      [&](int i, const SmallVector<double>& s) { out.row(i) = s.head(n).transpose(); });
   return out;
 }
 
@@ -529,15 +540,17 @@ LumpedFitResult fit_lumped(const Eigen::MatrixXd& u, const Eigen::MatrixXd& y, d
                            const LumpedFitOptions& o) {
   validate(u, y, rate_hz, o);
   const int n = static_cast<int>(u.cols());
-  FitData data{o.model, o.hold, n, state_size(o.model, n), theta_size(o.model, n),
-               1.0 / rate_hz, &u, &y, Eigen::VectorXd(n), Eigen::VectorXd(state_size(o.model, n))};
+  FitData data{
+      o.model,       o.hold, n,  state_size(o.model, n), theta_size(o.model, n),
+      1.0 / rate_hz, &u,     &y, Eigen::VectorXd(n),     Eigen::VectorXd(state_size(o.model, n))};
   const Eigen::MatrixXd velocity = differentiate(y, data.dt_s);
   for (int j = 0; j < n; ++j) {
     data.output_weight(j) = 1.0 / rms(y.col(j));
     data.state_weight(j) = data.output_weight(j);
     const double vs = rms(velocity.col(j));
     data.state_weight(n + j) = vs > 0.0 ? 1.0 / vs : data.output_weight(j) * data.dt_s;
-    if (o.model == LumpedModel::poynting_thomson) data.state_weight(2 * n + j) = data.output_weight(j);
+    if (o.model == LumpedModel::poynting_thomson)
+      data.state_weight(2 * n + j) = data.output_weight(j);
   }
   const double x_max = y.cwiseAbs().maxCoeff();
   std::map<std::string, StartRange> ranges = default_ranges(o.model, u, y, rate_hz);
@@ -564,7 +577,8 @@ LumpedFitResult fit_lumped(const Eigen::MatrixXd& u, const Eigen::MatrixXd& y, d
   result.segment_states.resize(seg.count(), data.state);
   for (int k = 0; k < seg.count(); ++k) result.segment_states.row(k) = best.states[k].transpose();
   if (!std::isfinite(best.cost)) {
-    result.status = Status::failure("the fit diverged (non-finite residuals): " + result.termination);
+    result.status =
+        Status::failure("the fit diverged (non-finite residuals): " + result.termination);
     return result;
   }
   result.simulated_m.resize(u.rows(), n);
@@ -619,7 +633,8 @@ std::map<std::string, StartRange> read_ranges_json(const std::string& path, Lump
     bool known = false;
     for (const MatrixParameter& m : model_matrices(model)) known = known || m.name == key;
     if (!known) {
-      throw InputError(path + ": key '" + key + "' is not a parameter of model " + model_name(model));
+      throw InputError(path + ": key '" + key + "' is not a parameter of model " +
+                       model_name(model));
     }
     if (!value.is_array() || value.size() != 2 || !value[0].is_number() || !value[1].is_number()) {
       throw InputError(path + ": key '" + key + "': expected [lower, upper] numbers");
@@ -653,8 +668,8 @@ nlohmann::json to_json(const LumpedFitResult& r) {
   j["dof"] = r.dof;
   j["parameters"] = nlohmann::json::object();
   for (const FittedMatrix& m : r.parameters) {
-    j["parameters"][m.name] = {{"value", matrix(m.value)}, {"std_error", matrix(m.std_error)},
-                               {"unit", m.unit}};
+    j["parameters"][m.name] = {
+        {"value", matrix(m.value)}, {"std_error", matrix(m.std_error)}, {"unit", m.unit}};
   }
   j["target"] = r.target;
   j["vaf_percent"] = vector(r.vaf_percent);

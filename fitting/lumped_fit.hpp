@@ -47,7 +47,8 @@ struct LumpedFitOptions {
   double continuity_weight = 1e3;
   /// RK4 steps per sampling interval; 0 = automatic: the smallest count with h * r <= step_target,
   /// r the fastest rate of the model (sqrt of the largest eigenvalue of I^-1 K, of I^-1 C, of
-  /// CP^-1 (KS + KP), with Duffing's K + 3 B max(x^2)), re-checked after a converged solve (at most 256).
+  /// CP^-1 (KS + KP), with Duffing's K + 3 B max(x^2)), re-checked after a converged solve (at most
+  /// 256).
   int substeps = 0;
   double step_target = 0.05;  ///< dimensionless h * rate; RK4 global error ~ (h r)^4 r T / 120
   int max_iterations = 200;   ///< per local solve stage
@@ -66,8 +67,8 @@ struct FittedMatrix {
 
 struct LumpedFitResult {
   LumpedModel model = LumpedModel::kelvin_voigt;
-  std::string target = "trial";          ///< "trial" (time series), "frf" (frf_fit.hpp) or "tfa"
-                                         ///< (tfa_fit.hpp: vaf and residual RMS per matrix)
+  std::string target = "trial";  ///< "trial" (time series), "frf" (frf_fit.hpp) or "tfa"
+                                 ///< (tfa_fit.hpp: vaf and residual RMS per matrix)
   int dof = 0;
   std::vector<FittedMatrix> parameters;  ///< in model_matrices order
   Eigen::VectorXd vaf_percent;           ///< [n] variance accounted for per output, %
@@ -90,8 +91,7 @@ struct LumpedFitResult {
 /// x, velocity x' and acceleration x'' (central differences), I in [r/10, 10 r] with r = f/x'',
 /// K, KS, KP in [r/10, 10 r] with r = f/x, C, CP in [r/100, 10 r] with r = f/x', B in [0, r] with
 /// r = f/RMS(x^3).
-std::map<std::string, StartRange> default_ranges(LumpedModel model,
-                                                 const Eigen::MatrixXd& inputs_n,
+std::map<std::string, StartRange> default_ranges(LumpedModel model, const Eigen::MatrixXd& inputs_n,
                                                  const Eigen::MatrixXd& outputs_m,
                                                  double sample_rate_hz);
 

@@ -21,9 +21,12 @@ InputHold parse_input_hold(const std::string& text, const std::string& what) {
 
 std::string model_name(LumpedModel model) {
   switch (model) {
-    case LumpedModel::kelvin_voigt: return "kv";
-    case LumpedModel::poynting_thomson: return "pt";
-    case LumpedModel::duffing: return "duffing";
+    case LumpedModel::kelvin_voigt:
+      return "kv";
+    case LumpedModel::poynting_thomson:
+      return "pt";
+    case LumpedModel::duffing:
+      return "duffing";
   }
   return "";
 }
@@ -33,11 +36,10 @@ std::vector<MatrixParameter> model_matrices(LumpedModel model) {
     case LumpedModel::kelvin_voigt:
       return {{"I", "kg", false}, {"C", "N s/m", false}, {"K", "N/m", false}};
     case LumpedModel::poynting_thomson:
-      return {{"I", "kg", false}, {"KS", "N/m", false}, {"KP", "N/m", false},
-              {"CP", "N s/m", false}};
+      return {
+          {"I", "kg", false}, {"KS", "N/m", false}, {"KP", "N/m", false}, {"CP", "N s/m", false}};
     case LumpedModel::duffing:
-      return {{"I", "kg", false}, {"C", "N s/m", false}, {"K", "N/m", false},
-              {"B", "N/m^3", true}};
+      return {{"I", "kg", false}, {"C", "N s/m", false}, {"K", "N/m", false}, {"B", "N/m^3", true}};
   }
   return {};
 }

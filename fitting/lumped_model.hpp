@@ -5,8 +5,9 @@
 //
 // Models (x, f, q of length n; matrices n x n, symmetric):
 //   KV       I x'' + C x' + K x = f                              (eq 15 with the inertia of eq 14)
-//   PT       I x'' + KS (x - q) = f,  CP q' = KS (x - q) - KP q   (series KS, parallel KP + CP; eq 16)
-//   Duffing  I x'' + C x' + K x + B x.^3 = f                     (B diagonal, element-wise cube; eq 17)
+//   PT       I x'' + KS (x - q) = f,  CP q' = KS (x - q) - KP q   (series KS, parallel KP + CP; eq
+//   16) Duffing  I x'' + C x' + K x + B x.^3 = f                     (B diagonal, element-wise
+//   cube; eq 17)
 //
 // Parameterization (vector theta): every symmetric positive definite matrix (I, C, K, KS, KP, CP)
 // is A = L L^T with L lower triangular; theta holds L row by row (n (n + 1) / 2 numbers) with the
@@ -34,8 +35,8 @@ std::string model_name(LumpedModel model);  ///< "kv" | "pt" | "duffing"
 
 /// One matrix of a model: its name, unit, and how it is parameterized.
 struct MatrixParameter {
-  std::string name;   ///< "I", "C", "K", "B", "KS", "KP", "CP"
-  std::string unit;   ///< SI unit of the entries: "kg", "N s/m", "N/m", "N/m^3"
+  std::string name;       ///< "I", "C", "K", "B", "KS", "KP", "CP"
+  std::string unit;       ///< SI unit of the entries: "kg", "N s/m", "N/m", "N/m^3"
   bool diagonal = false;  ///< true for B: n free diagonal entries; false: SPD via Cholesky
 };
 
@@ -52,7 +53,8 @@ int state_size(LumpedModel model, int dof);
 /// theta block of one SPD matrix from the matrix (n x n, symmetric positive definite; an Eigen
 /// LLT failure is a broken invariant of the caller).
 Eigen::VectorXd spd_to_theta(const Eigen::MatrixXd& a);
-/// theta of a whole model from its matrices (in model_matrices order; B given as an n x n diagonal).
+/// theta of a whole model from its matrices (in model_matrices order; B given as an n x n
+/// diagonal).
 Eigen::VectorXd matrices_to_theta(LumpedModel model, const std::vector<Eigen::MatrixXd>& matrices);
 
 /// Dense n x n matrix of scalar type T, at most 8 x 8 on the stack (no heap in the inner loop).
@@ -122,13 +124,13 @@ class LumpedDynamics {
     std::vector<SmallMatrix<T>> m = theta_to_matrices(theta, model, n);
     inertia_inverse_ = spd_inverse<T>(m[0]);
     if (model == LumpedModel::poynting_thomson) {
-      a_ = inertia_inverse_ * m[1];                        // I^-1 KS
+      a_ = inertia_inverse_ * m[1];  // I^-1 KS
       const SmallMatrix<T> cp_inv = spd_inverse<T>(m[3]);
-      b_ = cp_inv * m[1];                                  // CP^-1 KS
-      c_ = cp_inv * (m[1] + m[2]);                         // CP^-1 (KS + KP)
+      b_ = cp_inv * m[1];           // CP^-1 KS
+      c_ = cp_inv * (m[1] + m[2]);  // CP^-1 (KS + KP)
     } else {
-      a_ = inertia_inverse_ * m[2];                        // I^-1 K
-      b_ = inertia_inverse_ * m[1];                        // I^-1 C
+      a_ = inertia_inverse_ * m[2];                                     // I^-1 K
+      b_ = inertia_inverse_ * m[1];                                     // I^-1 C
       if (model == LumpedModel::duffing) c_ = inertia_inverse_ * m[3];  // I^-1 B
     }
   }

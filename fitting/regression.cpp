@@ -9,8 +9,8 @@
 #include <sstream>
 
 #include "data/error.hpp"
-#include "fitting/pchip.hpp"
 #include "estimators/savitzky_golay.hpp"
+#include "fitting/pchip.hpp"
 
 namespace stiffid::fitting {
 namespace {
@@ -31,7 +31,7 @@ int sample_at(const data::Trial& trial, double t_s) {
 struct Prepared {
   double onset_s = 0.0;
   std::string source;
-  Eigen::MatrixXd data;   // (S x 6) th1, th2, x, y, fx, fy
+  Eigen::MatrixXd data;  // (S x 6) th1, th2, x, y, fx, fy
 };
 
 /// Unperturbed values (1 x 6) at each sample of a window [first, last] of a trial.
@@ -89,9 +89,12 @@ RegressionMethod parse_regression_method(const std::string& text, const std::str
 
 std::string regression_method_name(RegressionMethod method) {
   switch (method) {
-    case RegressionMethod::force_pulse: return "force-pulse";
-    case RegressionMethod::displacement_full: return "disp-full";
-    case RegressionMethod::displacement_steady_state: return "disp-ss";
+    case RegressionMethod::force_pulse:
+      return "force-pulse";
+    case RegressionMethod::displacement_full:
+      return "disp-full";
+    case RegressionMethod::displacement_steady_state:
+      return "disp-ss";
   }
   return "";
 }
@@ -141,7 +144,8 @@ double detect_onset_s(const data::Trial& trial) {
   while (i < s && dev(i) <= std::max(floor, 0.05 * max_dev)) ++i;
   while (i > 0 && dev(i - 1) > floor) --i;
   if (i < ref) {
-    throw InputError(trial.source + ": the force changes within the first 50 ms; cannot detect "
+    throw InputError(trial.source +
+                     ": the force changes within the first 50 ms; cannot detect "
                      "the onset (give --onset)");
   }
   return trial.start_time_s + i / trial.sample_rate_hz;
@@ -237,7 +241,8 @@ RegressionResult regress(const std::vector<data::Trial>& trials, const data::Tri
     }
     const Eigen::MatrixXd theta = solve_regression(phi, target, what);
     const Eigen::MatrixXd residual = target - phi * theta;
-    e.residual_rms_n = (residual.colwise().squaredNorm() / static_cast<double>(rows)).cwiseSqrt().transpose();
+    e.residual_rms_n =
+        (residual.colwise().squaredNorm() / static_cast<double>(rows)).cwiseSqrt().transpose();
     // dF^T = dx''^T M^T + dx'^T B^T + dx^T K^T
     if (full) {
       e.m_endpoint_kg = theta.middleRows(0, 2).transpose();
@@ -278,7 +283,8 @@ RegressionResult regress(const std::vector<data::Trial>& trials, const data::Tri
                        seconds(result.estimates[i].onset_s) + " give the same estimation time");
     }
   }
-  const int count = static_cast<int>(std::floor((knots(n - 1) - knots(0)) * o.profile_hz + 1e-9)) + 1;
+  const int count =
+      static_cast<int>(std::floor((knots(n - 1) - knots(0)) * o.profile_hz + 1e-9)) + 1;
   RegressionProfile& prof = result.profile;
   prof.t_s = Eigen::VectorXd::LinSpaced(count, 0, count - 1) / o.profile_hz;
   prof.t_s.array() += knots(0);

@@ -36,40 +36,40 @@ Eigen::MatrixXd solve_regression(const Eigen::MatrixXd& regressors, const Eigen:
 
 struct RegressionOptions {
   RegressionMethod method = RegressionMethod::force_pulse;
-  std::optional<double> onset_s;   ///< onset of every trial, s; empty: detected from the force
-  double full_window_s = 0.2;      ///< full regressions: samples in [onset, onset + this), s
-  double steady_window_s = 0.05;   ///< disp-ss: the last this much of the plateau, s
-  double ramp_s = 0.1;             ///< disp-ss: ramp duration of the servo perturbation, s
-  double plateau_s = 0.1;          ///< disp-ss: plateau duration, s
-  double baseline_s = 0.2;         ///< postural baseline = mean over this long before onset, s
-  double group_tolerance_s = 0.05; ///< trials whose onsets differ less than this form one group
-  double savgol_window_s = 0.021;  ///< Savitzky-Golay window for dx', dx'' (odd samples >= 5), s
-  int savgol_order = 4;            ///< Savitzky-Golay polynomial degree
-  double profile_hz = 400.0;       ///< rate of the PCHIP time profile, Hz
-  models::ArmParameters arm;       ///< arm for the Jacobian (Piovesan Table 1 by default)
+  std::optional<double> onset_s;    ///< onset of every trial, s; empty: detected from the force
+  double full_window_s = 0.2;       ///< full regressions: samples in [onset, onset + this), s
+  double steady_window_s = 0.05;    ///< disp-ss: the last this much of the plateau, s
+  double ramp_s = 0.1;              ///< disp-ss: ramp duration of the servo perturbation, s
+  double plateau_s = 0.1;           ///< disp-ss: plateau duration, s
+  double baseline_s = 0.2;          ///< postural baseline = mean over this long before onset, s
+  double group_tolerance_s = 0.05;  ///< trials whose onsets differ less than this form one group
+  double savgol_window_s = 0.021;   ///< Savitzky-Golay window for dx', dx'' (odd samples >= 5), s
+  int savgol_order = 4;             ///< Savitzky-Golay polynomial degree
+  double profile_hz = 400.0;        ///< rate of the PCHIP time profile, Hz
+  models::ArmParameters arm;        ///< arm for the Jacobian (Piovesan Table 1 by default)
 };
 
 /// One estimation time: the regression over one onset group.
 struct RegressionEstimate {
-  double onset_s = 0.0;               ///< mean onset of the group's trials, s
-  double time_s = 0.0;                ///< centre of the regression window, s
-  std::vector<std::string> trials;    ///< sources of the group's trials
-  Eigen::Vector2d theta_rad;          ///< posture (shoulder, elbow), rad
-  Eigen::Matrix2d k_endpoint_n_per_m; ///< endpoint stiffness, N/m
-  Eigen::Matrix2d b_endpoint_ns_per_m;///< endpoint damping, N s/m (full regressions)
-  Eigen::Matrix2d m_endpoint_kg;      ///< endpoint inertia, kg (full regressions)
-  Eigen::Matrix2d k_joint_nm_per_rad; ///< joint stiffness, N m/rad
-  Eigen::Matrix2d b_joint_nms_per_rad;///< joint damping, N m s/rad (full regressions)
-  Eigen::Matrix2d m_joint_kg_m2;      ///< joint inertia, kg m^2 (full regressions)
-  Eigen::Vector2d residual_rms_n;     ///< RMS of the force residual per axis (x, y), N
-  bool full = true;                   ///< false for disp-ss (B and M not estimated)
+  double onset_s = 0.0;                 ///< mean onset of the group's trials, s
+  double time_s = 0.0;                  ///< centre of the regression window, s
+  std::vector<std::string> trials;      ///< sources of the group's trials
+  Eigen::Vector2d theta_rad;            ///< posture (shoulder, elbow), rad
+  Eigen::Matrix2d k_endpoint_n_per_m;   ///< endpoint stiffness, N/m
+  Eigen::Matrix2d b_endpoint_ns_per_m;  ///< endpoint damping, N s/m (full regressions)
+  Eigen::Matrix2d m_endpoint_kg;        ///< endpoint inertia, kg (full regressions)
+  Eigen::Matrix2d k_joint_nm_per_rad;   ///< joint stiffness, N m/rad
+  Eigen::Matrix2d b_joint_nms_per_rad;  ///< joint damping, N m s/rad (full regressions)
+  Eigen::Matrix2d m_joint_kg_m2;        ///< joint inertia, kg m^2 (full regressions)
+  Eigen::Vector2d residual_rms_n;       ///< RMS of the force residual per axis (x, y), N
+  bool full = true;                     ///< false for disp-ss (B and M not estimated)
 };
 
 /// Time profiles by PCHIP between estimation times (each matrix entry separately), on
 /// t_s = first estimation time + k / profile_hz up to the last.
 struct RegressionProfile {
-  Eigen::VectorXd t_s;                            ///< [T] s
-  std::vector<Eigen::Matrix2d> k_joint_nm_per_rad; ///< [T]
+  Eigen::VectorXd t_s;                              ///< [T] s
+  std::vector<Eigen::Matrix2d> k_joint_nm_per_rad;  ///< [T]
   std::vector<Eigen::Matrix2d> b_joint_nms_per_rad;
   std::vector<Eigen::Matrix2d> k_endpoint_n_per_m;
   std::vector<Eigen::Matrix2d> b_endpoint_ns_per_m;

@@ -45,12 +45,11 @@
 // 100 (1 - sum ||A_t - fit_t||^2 / sum ||A_t||^2); residual_rms the RMS of the entry residuals in
 // the matrix's unit.
 
+#include <Eigen/Core>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "fitting/lumped_fit.hpp"
 
@@ -58,18 +57,18 @@ namespace stiffid::fitting {
 
 /// The tracks of a `stiffid tfa` JSON.
 struct TfaTarget {
-  std::string source;                            ///< file name, for messages
-  Eigen::VectorXd time_s;                        ///< [T] frame times, s
+  std::string source;                                 ///< file name, for messages
+  Eigen::VectorXd time_s;                             ///< [T] frame times, s
   std::vector<Eigen::MatrixXd> stiffness_nm_per_rad;  ///< [T] (n x n) K(t), N m/rad (NaN: null)
   std::vector<Eigen::MatrixXd> damping_nms_per_rad;   ///< [T] (n x n) C(t), N m s/rad
   std::vector<Eigen::MatrixXd> inertia_kg_m2;         ///< [T] (n x n) M(theta(t)), kg m^2
-  std::vector<bool> valid;                       ///< [T] K_valid and every mode's "valid" (all
-                                                 ///< true when the file has neither)
-  std::vector<Eigen::MatrixXd> eigenvectors;     ///< [T] (n x n) P(t), columns = modes
-                                                 ///< (orthonormal; empty when the file has none)
-  Eigen::MatrixXd envelope;                      ///< (T x n) a_j(t), amplitude of the normalized
-                                                 ///< modal coordinate q_j, sqrt(kg) m rad (0 x 0
-                                                 ///< when the file has none)
+  std::vector<bool> valid;                            ///< [T] K_valid and every mode's "valid" (all
+                                                      ///< true when the file has neither)
+  std::vector<Eigen::MatrixXd> eigenvectors;          ///< [T] (n x n) P(t), columns = modes
+                                              ///< (orthonormal; empty when the file has none)
+  Eigen::MatrixXd envelope;     ///< (T x n) a_j(t), amplitude of the normalized
+                                ///< modal coordinate q_j, sqrt(kg) m rad (0 x 0
+                                ///< when the file has none)
   bool chirped_frames = false;  ///< made with the spectrogram's chirped frame fits ("options":
                                 ///< {"chirp": true}), which move the Duffing backbone's B
 };
@@ -87,10 +86,10 @@ struct TfaFitOptions {
 };
 
 struct TfaFitResult {
-  LumpedFitResult fit;           ///< target "tfa": parameters I, C, K (joint units), vaf, status
-  int frames = 0;                ///< frames used (valid, finite, inside the interval)
-  double first_s = 0.0;          ///< time of the first frame used, s
-  double last_s = 0.0;           ///< time of the last frame used, s
+  LumpedFitResult fit;   ///< target "tfa": parameters I, C, K (joint units), vaf, status
+  int frames = 0;        ///< frames used (valid, finite, inside the interval)
+  double first_s = 0.0;  ///< time of the first frame used, s
+  double last_s = 0.0;   ///< time of the last frame used, s
   /// [I, C, K(, B)] (n x n) variance inflation (1 + rho) / (1 - rho) applied to each entry's SE.
   std::vector<Eigen::MatrixXd> variance_inflation;
 };

@@ -127,7 +127,8 @@ Eigen::Matrix2d endpoint_to_joint(const ArmParameters& arm, const Eigen::Vector2
 Eigen::Matrix2d load_stiffness(const ArmParameters& arm, const Eigen::Vector2d& theta,
                                const Eigen::Vector2d& hand_force_n) {
   Eigen::Matrix2d omega;
-  for (int i = 0; i < 2; ++i) omega.col(i) = jacobian_d_theta(arm, theta, i).transpose() * hand_force_n;
+  for (int i = 0; i < 2; ++i)
+    omega.col(i) = jacobian_d_theta(arm, theta, i).transpose() * hand_force_n;
   return omega;
 }
 

@@ -10,14 +10,14 @@ namespace stiffid::models {
 
 /// Inertial and geometrical parameters of the two links (Piovesan 2012 Table 1 by default).
 struct ArmParameters {
-  double l1_m = 0.29;          ///< upper arm length, m
-  double r1_m = 0.132;         ///< shoulder to upper-arm centre of mass, m
-  double m1_kg = 1.99;         ///< upper arm mass, kg
-  double iz1_kg_m2 = 0.0161;   ///< upper arm moment of inertia about its centre of mass, kg m^2
-  double l2_m = 0.4;           ///< forearm+hand length, m
-  double r2_m = 0.17;          ///< elbow to forearm+hand centre of mass, m
-  double m2_kg = 1.10;         ///< forearm+hand mass, kg
-  double iz2_kg_m2 = 0.0146;   ///< forearm+hand moment of inertia about its centre of mass, kg m^2
+  double l1_m = 0.29;         ///< upper arm length, m
+  double r1_m = 0.132;        ///< shoulder to upper-arm centre of mass, m
+  double m1_kg = 1.99;        ///< upper arm mass, kg
+  double iz1_kg_m2 = 0.0161;  ///< upper arm moment of inertia about its centre of mass, kg m^2
+  double l2_m = 0.4;          ///< forearm+hand length, m
+  double r2_m = 0.17;         ///< elbow to forearm+hand centre of mass, m
+  double m2_kg = 1.10;        ///< forearm+hand mass, kg
+  double iz2_kg_m2 = 0.0146;  ///< forearm+hand moment of inertia about its centre of mass, kg m^2
 
   /// Throws InputError naming the first impossible value (non-positive length, mass or inertia,
   /// centre of mass outside its link).

@@ -39,8 +39,8 @@ bool all_finite(const State& x) {
 template <class Stepper, class Controlled, class State, class Rhs, class SetBranch, class Record>
 Status run_segments(Stepper& stepper, Controlled& controlled, bool use_controlled, Rhs&& rhs,
                     SetBranch&& set_branch, State& x, const std::vector<double>& bounds,
-                    const Eigen::VectorXd& times, const IntegratorOptions& options,
-                    Record&& record, long& steps) {
+                    const Eigen::VectorXd& times, const IntegratorOptions& options, Record&& record,
+                    long& steps) {
   const Eigen::Index samples = times.size();
   Eigen::Index next = 0;
   double dt = options.initial_step_s;
@@ -119,8 +119,7 @@ Status integrate_segments(IntegratorKind method, System& system, State x,
   auto set_branch = [&](double b) { system.branch = b; };
   auto stepper = odeint::make_dense_output(options.absolute_tolerance, options.relative_tolerance,
                                            odeint::runge_kutta_dopri5<State>());
-  auto controlled = odeint::make_controlled(options.absolute_tolerance,
-                                            options.relative_tolerance,
+  auto controlled = odeint::make_controlled(options.absolute_tolerance, options.relative_tolerance,
                                             odeint::runge_kutta_fehlberg78<State>());
   return detail::run_segments(stepper, controlled, method == IntegratorKind::adaptive,
                               std::ref(system), set_branch, x, bounds, times, options, record,

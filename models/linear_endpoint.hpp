@@ -16,8 +16,8 @@
 namespace stiffid::models {
 
 struct LinearResponse {
-  Eigen::MatrixXd position;   ///< (S x n) x, m
-  Eigen::MatrixXd velocity;   ///< (S x n) x', m/s
+  Eigen::MatrixXd position;  ///< (S x n) x, m
+  Eigen::MatrixXd velocity;  ///< (S x n) x', m/s
 };
 
 /// Response of I x'' + B x' + K x = f to the force samples f (S x n, N) at `sample_rate_hz`,

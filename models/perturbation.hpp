@@ -18,11 +18,11 @@ namespace stiffid::models {
 /// duration_s. Piovesan's impulse is 5 N for 20 ms, the regression pulse 5 N for 200 ms.
 /// For a 1-D endpoint model the force is amplitude_n * cos(a).
 struct ForcePulse {
-  double onset_s = 2.5;          ///< s
-  double duration_s = 0.02;      ///< s
-  double amplitude_n = 5.0;      ///< N
-  double direction_rad = 0.0;    ///< rad, from +x
-  bool random_octant = false;    ///< draw the direction among the 8 octants from the rng instead
+  double onset_s = 2.5;        ///< s
+  double duration_s = 0.02;    ///< s
+  double amplitude_n = 5.0;    ///< N
+  double direction_rad = 0.0;  ///< rad, from +x
+  bool random_octant = false;  ///< draw the direction among the 8 octants from the rng instead
 };
 /// Piovesan's impulse (5 N, 20 ms) and pulse (5 N, 200 ms).
 ForcePulse force_impulse(double onset_s, double direction_rad);
@@ -33,19 +33,20 @@ ForcePulse force_pulse(double onset_s, double direction_rad);
 /// with s(t) rising linearly 0 -> 1 over ramp_s, holding 1 for plateau_s, and returning linearly
 /// to 0 over return_s (Piovesan: 8 mm, 100 ms each). The handle is a stiff position servo active
 /// on [onset_s, onset_s + ramp_s + plateau_s + return_s): force on the hand
-///   F = K_servo (p - x) + C_servo (p' - x'),  x = hand position (m), p_ref = unperturbed hand path.
+///   F = K_servo (p - x) + C_servo (p' - x'),  x = hand position (m), p_ref = unperturbed hand
+///   path.
 /// Servo defaults: 2e4 N/m and 250 N s/m, a stiff (about 20 Hz against a ~1.5 kg hand) and well
 /// damped (ratio ~0.7) handle, in the range of the manipulanda used by Burdet et al. 2000.
 struct DisplacementRamp {
-  double onset_s = 2.5;                      ///< s
-  double amplitude_m = 0.008;                ///< m
-  double ramp_s = 0.1;                       ///< s
-  double plateau_s = 0.1;                    ///< s
-  double return_s = 0.1;                     ///< s
-  double direction_rad = 0.0;                ///< rad, from +x
-  double servo_stiffness_n_per_m = 2.0e4;    ///< N/m, isotropic
-  double servo_damping_ns_per_m = 250.0;     ///< N s/m, isotropic
-  bool random_octant = false;                ///< draw the direction among the 8 octants instead
+  double onset_s = 2.5;                    ///< s
+  double amplitude_m = 0.008;              ///< m
+  double ramp_s = 0.1;                     ///< s
+  double plateau_s = 0.1;                  ///< s
+  double return_s = 0.1;                   ///< s
+  double direction_rad = 0.0;              ///< rad, from +x
+  double servo_stiffness_n_per_m = 2.0e4;  ///< N/m, isotropic
+  double servo_damping_ns_per_m = 250.0;   ///< N s/m, isotropic
+  bool random_octant = false;              ///< draw the direction among the 8 octants instead
 
   double end_s() const { return onset_s + ramp_s + plateau_s + return_s; }
   /// Servo target offset from the unperturbed path, m (2), and its rate, m/s (2).
@@ -77,13 +78,13 @@ enum class InputHold { zero_order, first_order };
 /// Between samples the force is continued by `hold`: linear interpolation by default (Perreault
 /// linearly interpolated his simulations), or held constant (the shared reference case).
 struct RandomForce {
-  double bandwidth_hz = 9.0;        ///< low-pass cut-off (-3 dB), Hz (Perreault: about 9 Hz)
-  int filter_order = 4;             ///< Butterworth order
-  int oversample = 1;               ///< filter rate / trial sample rate (1..64), see above
-  double coupling_percent = 0.0;    ///< % of the variance of input 2 linearly related to input 1
-  double peak_to_peak_n = 1.0;      ///< N, per input (ignored when rms_n > 0)
-  double rms_n = 0.0;               ///< N, per input; 0 -> use peak_to_peak_n
-  double warmup_s = 2.0;            ///< filter transient discarded before t = 0, s
+  double bandwidth_hz = 9.0;      ///< low-pass cut-off (-3 dB), Hz (Perreault: about 9 Hz)
+  int filter_order = 4;           ///< Butterworth order
+  int oversample = 1;             ///< filter rate / trial sample rate (1..64), see above
+  double coupling_percent = 0.0;  ///< % of the variance of input 2 linearly related to input 1
+  double peak_to_peak_n = 1.0;    ///< N, per input (ignored when rms_n > 0)
+  double rms_n = 0.0;             ///< N, per input; 0 -> use peak_to_peak_n
+  double warmup_s = 2.0;          ///< filter transient discarded before t = 0, s
   InputHold hold = InputHold::first_order;  ///< continuation between samples
 };
 
@@ -96,7 +97,7 @@ Eigen::MatrixXd random_forces(const RandomForce& options, int samples, int input
 struct Perturbations {
   std::vector<ForcePulse> pulses;
   std::vector<DisplacementRamp> ramps;
-  bool random = false;              ///< apply `random_force`
+  bool random = false;  ///< apply `random_force`
   RandomForce random_force;
 };
 
@@ -114,8 +115,8 @@ double octant_direction_rad(int k);
 /// noisy hand position by inverse kinematics, so all channels see the same measurement.
 struct NoiseOptions {
   double snr_db = std::numeric_limits<double>::infinity();  ///< dB; infinity = no constant noise
-  bool signal_dependent = false;                              ///< add Piovesan's SDN
-  double sdn_max_snr_db = 10.0;                               ///< dB, SNR at the profile's maximum
+  bool signal_dependent = false;                            ///< add Piovesan's SDN
+  double sdn_max_snr_db = 10.0;                             ///< dB, SNR at the profile's maximum
 };
 
 }  // namespace stiffid::models

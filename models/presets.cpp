@@ -10,7 +10,7 @@ constexpr double kDeg = M_PI / 180.0;
 // Perreault simulated in continuous time (Simulink) and sampled at 50 Hz: the 9 Hz forces are an
 // analog filter's output, approximated by filtering at 10 x 50 Hz (see RandomForce::oversample).
 constexpr int kPerreaultOversample = 10;
-}
+}  // namespace
 
 Eigen::Vector2d perreault_posture_rad(int position) {
   static const double angles_deg[4][2] = {{63.0, 77.0}, {42.0, 63.0}, {102.0, 59.0}, {37.0, 127.0}};

@@ -94,10 +94,10 @@ struct ElementEval {
 // smooth; the segment's midpoint ("branch") selects the pieces, continued past the segment's ends
 // so that the integrator sees a smooth right-hand side (see integrate.hpp).
 struct Forcing {
-  int forces = 2;                      // force components
+  int forces = 2;  // force components
   std::vector<ForcePulse> pulses;
   std::vector<DisplacementRamp> ramps;
-  Eigen::MatrixXd random;              // (S x forces) or empty
+  Eigen::MatrixXd random;  // (S x forces) or empty
   InputHold hold = InputHold::first_order;
   double sample_rate_hz = 1.0;
 
@@ -117,8 +117,9 @@ struct Forcing {
     }
     if (random.rows() > 0) {
       const Eigen::Index last = random.rows() - 1;
-      const Eigen::Index k = std::clamp<Eigen::Index>(
-          static_cast<Eigen::Index>(std::floor(branch * sample_rate_hz)), 0, std::max<Eigen::Index>(last - 1, 0));
+      const Eigen::Index k =
+          std::clamp<Eigen::Index>(static_cast<Eigen::Index>(std::floor(branch * sample_rate_hz)),
+                                   0, std::max<Eigen::Index>(last - 1, 0));
       const Eigen::Index k1 = std::min(k + 1, last);
       const double w =
           hold == InputHold::first_order ? t * sample_rate_hz - static_cast<double>(k) : 0.0;
@@ -220,8 +221,8 @@ struct ArmSystem {
   ReferencePoint fixed_reference;
   double branch = 0.0;
   long* evaluations;
-  InertiaConstants inertia;                // of *arm, eq 9
-  Eigen::Vector2d fixed_reference_torque;  // reference_torque(fixed_reference), N m
+  InertiaConstants inertia;                     // of *arm, eq 9
+  Eigen::Vector2d fixed_reference_torque;       // reference_torque(fixed_reference), N m
   Eigen::Array2d reference_cos, reference_sin;  // of fixed_reference.theta_rad
 
   ReferencePoint reference(double t) const {
@@ -329,9 +330,10 @@ struct EndpointSystem {
   void operator()(const std::vector<double>& s, std::vector<double>& ds, double t) const {
     ++*evaluations;
     const Eigen::Map<const Eigen::VectorXd> x(s.data(), n), v(s.data() + n, n);
-    const Eigen::VectorXd z = element.kind == ElementKind::poynting_thomson
-                                  ? Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(s.data() + 2 * n, n))
-                                  : Eigen::VectorXd::Zero(n);
+    const Eigen::VectorXd z =
+        element.kind == ElementKind::poynting_thomson
+            ? Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(s.data() + 2 * n, n))
+            : Eigen::VectorXd::Zero(n);
     const Eigen::VectorXd acc =
         inertia_inverse * (element.force(t, branch, Eigen::VectorXd(x), Eigen::VectorXd(v), z) +
                            applied_force(t, x, v));
@@ -346,8 +348,7 @@ struct EndpointSystem {
   }
 };
 
-std::vector<std::string> endpoint_axis_names(int n, const std::string& force_prefix,
-                                             bool force) {
+std::vector<std::string> endpoint_axis_names(int n, const std::string& force_prefix, bool force) {
   static const char* axes[] = {"x", "y", "z"};
   std::vector<std::string> names;
   for (int i = 0; i < n; ++i) {
@@ -386,7 +387,8 @@ Eigen::MatrixXd draw_noise(const NoiseOptions& noise, const Eigen::MatrixXd& sig
     for (Eigen::Index s = 0; s < samples; ++s) {
       double e = 0.0;
       if (constant) e += sigma * normal(rng);
-      if (noise.signal_dependent) e += sdn * std::abs(profile(s)) / std::max(profile_max, 1e-300) * normal(rng);
+      if (noise.signal_dependent)
+        e += sdn * std::abs(profile(s)) / std::max(profile_max, 1e-300) * normal(rng);
       out(s, c) = e;
     }
   }
@@ -454,8 +456,8 @@ Forcing make_forcing(const TrialSpec& spec, int forces, int samples, std::mt1993
   forcing.sample_rate_hz = spec.sample_rate_hz;
   forcing.hold = spec.perturbations.random_force.hold;
   if (spec.perturbations.random) {
-    forcing.random = random_forces(spec.perturbations.random_force, samples, forces,
-                                   spec.sample_rate_hz, rng);
+    forcing.random =
+        random_forces(spec.perturbations.random_force, samples, forces, spec.sample_rate_hz, rng);
   }
   std::uniform_int_distribution<int> octant(0, 7);
   forcing.pulses = spec.perturbations.pulses;
@@ -501,9 +503,19 @@ SimulationResult simulate_arm(const TrialSpec& spec, std::mt19937_64& rng) {
   for (int s = 0; s < samples; ++s) truth.time_s(s) = s / rate;
 
   const Forcing forcing = make_forcing(spec, 2, samples, rng, truth);
-  ArmSystem system{&spec.arm, &spec.task, spec.duration_s, ElementEval<2>(spec.joint), &forcing,
-                   spec.task.kind == TaskKind::posture, {}, 0.0, &result.rhs_evaluations,
-                   inertia_constants(spec.arm), Eigen::Vector2d::Zero(), {}, {}};
+  ArmSystem system{&spec.arm,
+                   &spec.task,
+                   spec.duration_s,
+                   ElementEval<2>(spec.joint),
+                   &forcing,
+                   spec.task.kind == TaskKind::posture,
+                   {},
+                   0.0,
+                   &result.rhs_evaluations,
+                   inertia_constants(spec.arm),
+                   Eigen::Vector2d::Zero(),
+                   {},
+                   {}};
   system.fixed_reference = arm_reference(spec.arm, spec.task, spec.duration_s, 0.0);
   system.fixed_reference_torque = system.reference_torque(system.fixed_reference);
   system.reference_cos = system.fixed_reference.theta_rad.array().cos();
@@ -554,7 +566,8 @@ SimulationResult simulate_arm(const TrialSpec& spec, std::mt19937_64& rng) {
     const ReferencePoint ref = system.reference(truth.time_s(s));
     const Eigen::Vector2d theta = ref.theta_rad + states.block<1, 2>(s, 0).transpose();
     truth.position.row(s) = theta.transpose();
-    truth.velocity.row(s) = (ref.theta_dot_rad_per_s + states.block<1, 2>(s, 2).transpose()).transpose();
+    truth.velocity.row(s) =
+        (ref.theta_dot_rad_per_s + states.block<1, 2>(s, 2).transpose()).transpose();
     truth.reference_position.row(s) = ref.theta_rad.transpose();
     truth.reference_velocity.row(s) = ref.theta_dot_rad_per_s.transpose();
     truth.hand_position_m.row(s) = hand_position(spec.arm, theta).transpose();
@@ -579,7 +592,8 @@ SimulationResult simulate_arm(const TrialSpec& spec, std::mt19937_64& rng) {
       if (truth.position(s, 1) < 0.0) {  // the arm is on the other elbow branch
         th(1) = -th(1);
         th(0) = std::atan2(hand(s, 1), hand(s, 0)) -
-                std::atan2(spec.arm.l2_m * std::sin(th(1)), spec.arm.l1_m + spec.arm.l2_m * std::cos(th(1)));
+                std::atan2(spec.arm.l2_m * std::sin(th(1)),
+                           spec.arm.l1_m + spec.arm.l2_m * std::cos(th(1)));
         th(0) += kTwoPi * std::round((truth.position(s, 0) - th(0)) / kTwoPi);
       }
       angles.row(s) = th.transpose();
@@ -637,18 +651,25 @@ SimulationResult simulate_endpoint(const TrialSpec& spec, std::mt19937_64& rng) 
                        "time-invariant endpoint model (kelvin_voigt, constant profiles, no " +
                        "tables) driven by random forces only");
     }
-    const Eigen::MatrixXd k = e.kind == ElementKind::none ? Eigen::MatrixXd::Zero(n, n) : e.stiffness;
-    const Eigen::MatrixXd c = e.kind == ElementKind::none ? Eigen::MatrixXd::Zero(n, n) : damping_at(e, 0.0);
-    const Eigen::MatrixXd u = forcing.random.rows() ? forcing.random : Eigen::MatrixXd::Zero(samples, n);
-    const LinearResponse r = simulate_linear_endpoint(spec.endpoint.inertia_kg, c, k, u, rate,
-                                                      forcing.hold, x0, v0);
+    const Eigen::MatrixXd k =
+        e.kind == ElementKind::none ? Eigen::MatrixXd::Zero(n, n) : e.stiffness;
+    const Eigen::MatrixXd c =
+        e.kind == ElementKind::none ? Eigen::MatrixXd::Zero(n, n) : damping_at(e, 0.0);
+    const Eigen::MatrixXd u =
+        forcing.random.rows() ? forcing.random : Eigen::MatrixXd::Zero(samples, n);
+    const LinearResponse r =
+        simulate_linear_endpoint(spec.endpoint.inertia_kg, c, k, u, rate, forcing.hold, x0, v0);
     position = r.position;
     velocity = r.velocity;
     force = u;
   } else {
     long evaluations = 0;
-    EndpointSystem system{spec.endpoint.inertia_kg.inverse(), ElementEval<Eigen::Dynamic>(e),
-                          &forcing, n, 0.0, &evaluations};
+    EndpointSystem system{spec.endpoint.inertia_kg.inverse(),
+                          ElementEval<Eigen::Dynamic>(e),
+                          &forcing,
+                          n,
+                          0.0,
+                          &evaluations};
     const int states = e.kind == ElementKind::poynting_thomson ? 3 * n : 2 * n;
     std::vector<double> x(states, 0.0);
     for (int i = 0; i < n; ++i) {
@@ -684,7 +705,8 @@ SimulationResult simulate_endpoint(const TrialSpec& spec, std::mt19937_64& rng) 
   truth.inertia = Eigen::VectorXd::Ones(samples) * flatten(spec.endpoint.inertia_kg);
   fill_element_truth(e, truth);
 
-  const Eigen::MatrixXd noise = draw_noise(spec.noise, position, truth.stiffness_profile, truth, rng);
+  const Eigen::MatrixXd noise =
+      draw_noise(spec.noise, position, truth.stiffness_profile, truth, rng);
   const Eigen::MatrixXd measured = position + noise;
   data::Trial& trial = result.trial;
   trial.sample_rate_hz = rate;
@@ -706,8 +728,9 @@ ReferencePoint arm_reference(const ArmParameters& arm, const ArmTask& task, doub
                              double t_s) {
   ReferencePoint r;
   if (task.kind == TaskKind::posture) {
-    r.theta_rad = task.posture_by_angles ? task.posture_joint_rad
-                                         : inverse_kinematics(arm, task.posture_hand_m, "task.hand_m");
+    r.theta_rad = task.posture_by_angles
+                      ? task.posture_joint_rad
+                      : inverse_kinematics(arm, task.posture_hand_m, "task.hand_m");
     r.hand_m = hand_position(arm, r.theta_rad);
     if (!task.posture_by_angles) r.hand_m = task.posture_hand_m;
     r.hand_velocity_m_per_s.setZero();
@@ -717,7 +740,8 @@ ReferencePoint arm_reference(const ArmParameters& arm, const ArmTask& task, doub
     return r;
   }
   // Eqs 50-51: s(t) = 1 / (1 + Q exp(-B (t - E))), s' = B s (1 - s), s'' = B s' (1 - 2 s).
-  const double midpoint = std::isnan(task.reach_midpoint_s) ? 0.5 * duration_s : task.reach_midpoint_s;
+  const double midpoint =
+      std::isnan(task.reach_midpoint_s) ? 0.5 * duration_s : task.reach_midpoint_s;
   const double b = task.reach_rate_per_s;
   const double s = 1.0 / (1.0 + task.reach_q * std::exp(-b * (t_s - midpoint)));
   const double s_dot = b * s * (1.0 - s);
@@ -761,10 +785,14 @@ IntegratorKind integrator_kind_from_name(const std::string& name, const std::str
 
 std::string integrator_kind_name(IntegratorKind kind) {
   switch (kind) {
-    case IntegratorKind::automatic: return "automatic";
-    case IntegratorKind::adaptive: return "adaptive";
-    case IntegratorKind::dopri5: return "dopri5";
-    case IntegratorKind::exact: return "exact";
+    case IntegratorKind::automatic:
+      return "automatic";
+    case IntegratorKind::adaptive:
+      return "adaptive";
+    case IntegratorKind::dopri5:
+      return "dopri5";
+    case IntegratorKind::exact:
+      return "exact";
   }
   return "automatic";
 }

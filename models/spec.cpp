@@ -41,8 +41,8 @@ class Object {
 
   // The value of base_suffix for one of `units`, with the unit's factor; nullopt when absent.
   std::optional<std::pair<const json*, double>> find(const std::string& base,
-                                                       const std::vector<Unit>& units,
-                                                       std::string* found_key = nullptr) {
+                                                     const std::vector<Unit>& units,
+                                                     std::string* found_key = nullptr) {
     known_.push_back({base, units});
     std::optional<std::pair<const json*, double>> out;
     for (const Unit& u : units) {
@@ -183,7 +183,8 @@ class Object {
     return out;
   }
 
-  Eigen::VectorXd to_vector(const json& a, const std::string& where, int size, double factor) const {
+  Eigen::VectorXd to_vector(const json& a, const std::string& where, int size,
+                            double factor) const {
     if (!a.is_array()) fail(where, "expected an array of " + std::to_string(size) + " numbers");
     if (size >= 0 && static_cast<int>(a.size()) != size) {
       fail(where, "expected " + std::to_string(size) + " numbers, got " + std::to_string(a.size()));
@@ -230,9 +231,11 @@ TimeProfile parse_profile(const json& value, const std::string& path, const std:
   TimeProfile p;
   p.horizon_s = duration_s;
   if (value.is_string()) {
-    rethrow_with_source(source, [&] { p.kind = profile_kind_from_name(value.get<std::string>(), path); });
+    rethrow_with_source(source,
+                        [&] { p.kind = profile_kind_from_name(value.get<std::string>(), path); });
     if (p.kind == ProfileKind::table) {
-      throw InputError(source + ": " + path + ": a table profile needs an object with time_s and value");
+      throw InputError(source + ": " + path +
+                       ": a table profile needs an object with time_s and value");
     }
     return p;
   }
@@ -257,7 +260,8 @@ TimeProfile parse_profile(const json& value, const std::string& path, const std:
 // Reads the element fields of `o` (kind, matrices, profiles, rotation) in `space` units.
 void parse_element(Object& o, Viscoelasticity& e, Space space, int n, double duration_s) {
   if (const auto kind = o.text("kind")) {
-    rethrow_with_source(o.source(), [&] { e.kind = element_kind_from_name(*kind, o.key_path("kind")); });
+    rethrow_with_source(o.source(),
+                        [&] { e.kind = element_kind_from_name(*kind, o.key_path("kind")); });
   }
   auto matrix_field = [&](const std::string& field, Eigen::MatrixXd& target) {
     const std::string key = element_key(field, space);
@@ -400,7 +404,8 @@ void parse_perturbation(const json& value, const std::string& path, const std::s
     if (!(f.coupling_percent >= 0.0 && f.coupling_percent <= 100.0)) {
       o.fail(o.key_path("coupling_percent"), "expected a percentage in [0, 100]");
     }
-    if (!(f.bandwidth_hz > 0.0)) o.fail(o.key_path("bandwidth_hz"), "expected a positive frequency");
+    if (!(f.bandwidth_hz > 0.0))
+      o.fail(o.key_path("bandwidth_hz"), "expected a positive frequency");
     if (!(f.peak_to_peak_n >= 0.0)) o.fail(o.key_path("peak_to_peak_n"), "expected >= 0");
     if (!(f.rms_n >= 0.0)) o.fail(o.key_path("rms_n"), "expected >= 0");
     if (!(f.warmup_s >= 0.0)) o.fail(o.key_path("warmup_s"), "expected >= 0");
@@ -603,7 +608,8 @@ void element_json(const Viscoelasticity& e, Space space, json& out) {
   } else {
     out["damping_table"] = table_json(e.damping_table, element_key("damping", space));
   }
-  if (e.series_stiffness.size()) out[element_key("series_stiffness", space)] = matrix_json(e.series_stiffness);
+  if (e.series_stiffness.size())
+    out[element_key("series_stiffness", space)] = matrix_json(e.series_stiffness);
   if (e.cubic_stiffness.size()) {
     out[element_key("cubic_stiffness", space)] = matrix_json(e.cubic_stiffness);
   }
@@ -620,9 +626,9 @@ json trial_spec_to_json(const TrialSpec& spec) {
   out["seed"] = spec.seed;
   if (arm) {
     const ArmParameters& a = spec.arm;
-    out["arm"] = {{"l1_m", a.l1_m},   {"r1_m", a.r1_m}, {"m1_kg", a.m1_kg},
-                  {"iz1_kg_m2", a.iz1_kg_m2}, {"l2_m", a.l2_m}, {"r2_m", a.r2_m},
-                  {"m2_kg", a.m2_kg}, {"iz2_kg_m2", a.iz2_kg_m2}};
+    out["arm"] = {{"l1_m", a.l1_m},           {"r1_m", a.r1_m},          {"m1_kg", a.m1_kg},
+                  {"iz1_kg_m2", a.iz1_kg_m2}, {"l2_m", a.l2_m},          {"r2_m", a.r2_m},
+                  {"m2_kg", a.m2_kg},         {"iz2_kg_m2", a.iz2_kg_m2}};
     json task;
     if (spec.task.kind == TaskKind::posture) {
       task["kind"] = "posture";
@@ -690,15 +696,16 @@ json trial_spec_to_json(const TrialSpec& spec) {
   }
   if (spec.perturbations.random) {
     const RandomForce& f = spec.perturbations.random_force;
-    perturbations.push_back({{"kind", "random_force"},
-                             {"bandwidth_hz", f.bandwidth_hz},
-                             {"filter_order", f.filter_order},
-                             {"oversample", f.oversample},
-                             {"coupling_percent", f.coupling_percent},
-                             {"peak_to_peak_n", f.peak_to_peak_n},
-                             {"rms_n", f.rms_n},
-                             {"warmup_s", f.warmup_s},
-                             {"hold", f.hold == InputHold::first_order ? "first_order" : "zero_order"}});
+    perturbations.push_back(
+        {{"kind", "random_force"},
+         {"bandwidth_hz", f.bandwidth_hz},
+         {"filter_order", f.filter_order},
+         {"oversample", f.oversample},
+         {"coupling_percent", f.coupling_percent},
+         {"peak_to_peak_n", f.peak_to_peak_n},
+         {"rms_n", f.rms_n},
+         {"warmup_s", f.warmup_s},
+         {"hold", f.hold == InputHold::first_order ? "first_order" : "zero_order"}});
   }
   out["perturbations"] = perturbations;
   json noise;
@@ -706,12 +713,12 @@ json trial_spec_to_json(const TrialSpec& spec) {
   noise["signal_dependent"] = spec.noise.signal_dependent;
   noise["sdn_max_snr_db"] = spec.noise.sdn_max_snr_db;
   out["noise"] = noise;
-  out["integrator"] = {{"method", integrator_kind_name(spec.integrator.kind)},
-                       {arm ? "absolute_tolerance_rad" : "absolute_tolerance_m",
-                        spec.integrator.absolute_tolerance},
-                       {"relative_tolerance", spec.integrator.relative_tolerance},
-                       {"initial_step_s", spec.integrator.initial_step_s},
-                       {"max_steps", spec.integrator.max_steps}};
+  out["integrator"] = {
+      {"method", integrator_kind_name(spec.integrator.kind)},
+      {arm ? "absolute_tolerance_rad" : "absolute_tolerance_m", spec.integrator.absolute_tolerance},
+      {"relative_tolerance", spec.integrator.relative_tolerance},
+      {"initial_step_s", spec.integrator.initial_step_s},
+      {"max_steps", spec.integrator.max_steps}};
   return out;
 }
 

@@ -97,7 +97,8 @@ void TrialSpec::validate() const {
     if (i.rows() < 1 || i.rows() != i.cols() || !i.allFinite()) {
       throw InputError(where(source, "endpoint.inertia_kg") + ": expected a finite square matrix");
     }
-    if ((i - i.transpose()).cwiseAbs().maxCoeff() > 1e-12 * std::max(1.0, i.cwiseAbs().maxCoeff())) {
+    if ((i - i.transpose()).cwiseAbs().maxCoeff() >
+        1e-12 * std::max(1.0, i.cwiseAbs().maxCoeff())) {
       throw InputError(where(source, "endpoint.inertia_kg") + ": expected a symmetric matrix");
     }
     if (!(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(i).eigenvalues().minCoeff() > 0.0)) {
@@ -137,7 +138,8 @@ void TrialSpec::validate() const {
   }
   for (std::size_t k = 0; k < perturbations.ramps.size(); ++k) {
     const DisplacementRamp& r = perturbations.ramps[k];
-    const std::string key = "perturbations[" + std::to_string(perturbations.pulses.size() + k) + "].";
+    const std::string key =
+        "perturbations[" + std::to_string(perturbations.pulses.size() + k) + "].";
     require_non_negative(source, key + "onset_s", r.onset_s);
     if (r.onset_s > end) {
       throw InputError(where(source, key + "onset_s") + ": the onset lies after the trial's end");
@@ -174,7 +176,8 @@ void TrialSpec::validate() const {
     require_non_negative(source, key + "rms_n", f.rms_n);
     require_non_negative(source, key + "warmup_s", f.warmup_s);
   }
-  if (std::isnan(noise.snr_db)) throw InputError(where(source, "noise.snr_db") + ": expected a number");
+  if (std::isnan(noise.snr_db))
+    throw InputError(where(source, "noise.snr_db") + ": expected a number");
   if (noise.signal_dependent) require_finite(source, "noise.sdn_max_snr_db", noise.sdn_max_snr_db);
   const Viscoelasticity& element = model == ModelKind::arm ? joint : endpoint.element;
   if (noise.signal_dependent && !element.stiffness_table.empty()) {

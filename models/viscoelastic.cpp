@@ -133,11 +133,16 @@ ProfileKind profile_kind_from_name(const std::string& name, const std::string& k
 
 std::string profile_kind_name(ProfileKind kind) {
   switch (kind) {
-    case ProfileKind::constant: return "constant";
-    case ProfileKind::sigmoid: return "sigmoid";
-    case ProfileKind::sinlin: return "sinlin";
-    case ProfileKind::sharp: return "sharp";
-    case ProfileKind::table: return "table";
+    case ProfileKind::constant:
+      return "constant";
+    case ProfileKind::sigmoid:
+      return "sigmoid";
+    case ProfileKind::sinlin:
+      return "sinlin";
+    case ProfileKind::sharp:
+      return "sharp";
+    case ProfileKind::table:
+      return "table";
   }
   return "constant";
 }
@@ -153,10 +158,14 @@ ElementKind element_kind_from_name(const std::string& name, const std::string& k
 
 std::string element_kind_name(ElementKind kind) {
   switch (kind) {
-    case ElementKind::kelvin_voigt: return "kelvin_voigt";
-    case ElementKind::poynting_thomson: return "poynting_thomson";
-    case ElementKind::duffing: return "duffing";
-    case ElementKind::none: return "none";
+    case ElementKind::kelvin_voigt:
+      return "kelvin_voigt";
+    case ElementKind::poynting_thomson:
+      return "poynting_thomson";
+    case ElementKind::duffing:
+      return "duffing";
+    case ElementKind::none:
+      return "none";
   }
   return "none";
 }

@@ -1,6 +1,6 @@
 #pragma once
-// Viscoelastic elements of the simulator: Kelvin-Voigt with time-varying K(t), C(t) (Piovesan et al.
-// 2012 eq 15), Poynting-Thomson with its internal state (eq 16), Duffing with a cubic matrix
+// Viscoelastic elements of the simulator: Kelvin-Voigt with time-varying K(t), C(t) (Piovesan et
+// al. 2012 eq 15), Poynting-Thomson with its internal state (eq 16), Duffing with a cubic matrix
 // (eq 17); the time profiles u1..u4 of eq 54 and tabulated user profiles; the rotation of C of
 // eq 55. An element has n degrees of freedom: n = 2 joints for the arm (N m/rad, N m s/rad) or the
 // n axes of an endpoint model (N/m, N s/m). Forces are generalized forces ON the limb.
@@ -50,10 +50,10 @@ enum class ProfileKind { constant, sigmoid, sinlin, sharp, table };
 /// start_s (u2: 1 -> 1.027, u3: 1 -> 0). A table profile ignores start_s and horizon_s.
 struct TimeProfile {
   ProfileKind kind = ProfileKind::constant;
-  double start_s = 2.5;                ///< time the profile starts to act, s (Piovesan: 2.5 s)
-  double horizon_s = 5.0;              ///< T of eq 54, s (Piovesan: 5 s, the trial duration)
-  std::vector<double> table_time_s;    ///< [P] strictly increasing times, s (kind == table)
-  std::vector<double> table_value;     ///< [P] multipliers at those times, dimensionless
+  double start_s = 2.5;              ///< time the profile starts to act, s (Piovesan: 2.5 s)
+  double horizon_s = 5.0;            ///< T of eq 54, s (Piovesan: 5 s, the trial duration)
+  std::vector<double> table_time_s;  ///< [P] strictly increasing times, s (kind == table)
+  std::vector<double> table_value;   ///< [P] multipliers at those times, dimensionless
 
   /// u(t), dimensionless.
   double value(double t_s) const { return value(t_s, t_s); }

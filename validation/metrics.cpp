@@ -40,8 +40,7 @@ Eigen::VectorXd output_vaf_percent(const Eigen::Ref<const Eigen::MatrixXd>& meas
   require_same_shape(predicted.rows(), predicted.cols(), measured.rows(), measured.cols(), what);
   Eigen::VectorXd vaf(measured.cols());
   for (Eigen::Index j = 0; j < measured.cols(); ++j) {
-    vaf(j) = vaf_percent(predicted.col(j), measured.col(j),
-                         what + " column " + std::to_string(j));
+    vaf(j) = vaf_percent(predicted.col(j), measured.col(j), what + " column " + std::to_string(j));
   }
   return vaf;
 }

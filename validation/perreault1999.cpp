@@ -172,15 +172,14 @@ CellOutcome mimo_identification_evaluator(const nlohmann::json& spec, std::uint6
   if (!sim.status.ok) return {Status::failure("simulation: " + sim.status.message), {}};
 
   const Eigen::MatrixXd inputs = sim.trial.columns({"fx", "fy"});
-  const Eigen::MatrixXd outputs =
-      sim.trial.columns(model == "arm" ? std::vector<std::string>{"dx", "dy"}
-                                       : std::vector<std::string>{"x", "y"});
+  const Eigen::MatrixXd outputs = sim.trial.columns(
+      model == "arm" ? std::vector<std::string>{"dx", "dy"} : std::vector<std::string>{"x", "y"});
   // The truth: the endpoint model itself, or the arm linearized at its mean posture (eq 16).
   EndpointImpedance truth;
   if (model == "arm") {
     const Eigen::Vector2d mean_theta = sim.truth.position.colwise().mean().transpose();
-    truth = arm_endpoint_impedance(trial.arm, mean_theta, trial.joint.damping,
-                                   trial.joint.stiffness);
+    truth =
+        arm_endpoint_impedance(trial.arm, mean_theta, trial.joint.damping, trial.joint.stiffness);
   } else {
     truth = {trial.endpoint.inertia_kg, trial.endpoint.element.damping,
              trial.endpoint.element.stiffness};
@@ -318,8 +317,7 @@ struct TableSpec {
 bool write_table(const Summaries& summaries, const TableSpec& table, const std::string& folder,
                  std::ostringstream& md) {
   if (!summaries.has_design(table.design)) {
-    md << "\n## " << table.title << "\n\nNot in this study (no design '" << table.design
-       << "').\n";
+    md << "\n## " << table.title << "\n\nNot in this study (no design '" << table.design << "').\n";
     return true;
   }
   std::ostringstream csv;
@@ -328,8 +326,9 @@ bool write_table(const Summaries& summaries, const TableSpec& table, const std::
     csv << ',' << label << "_paper," << label << "_mean," << label << "_sd";
   }
   csv << ",replicates,pass\n";
-  md << "\n## " << table.title << "\n\nOurs: mean +- SD over replicates; (paper). Criterion: "
-     << table.criterion << ".\n\n| " << table.factor_label << " |";
+  md << "\n## " << table.title
+     << "\n\nOurs: mean +- SD over replicates; (paper). Criterion: " << table.criterion << ".\n\n| "
+     << table.factor_label << " |";
   for (const char* label : kTableLabels) md << ' ' << label << " (%) |";
   md << " pass |\n|---|---|---|---|---|---|---|\n";
   bool all_pass = true;
@@ -345,8 +344,8 @@ bool write_table(const Summaries& summaries, const TableSpec& table, const std::
     bool row_pass = true;
     int replicates = 0;
     for (int q = 0; q < 5; ++q) {
-      const SummaryRow* s = summaries.find(table.design, table.factor, paper.level,
-                                           kTableMetrics[q]);
+      const SummaryRow* s =
+          summaries.find(table.design, table.factor, paper.level, kTableMetrics[q]);
       const double mean = s ? s->mean : std::nan("");
       const double sd = s ? s->sd : std::nan("");
       if (s) replicates = s->n;
@@ -372,14 +371,14 @@ bool write_fig9(const Summaries& summaries, const std::string& folder, std::ostr
     md << "Not in this study (no design '" << design << "').\n";
     return true;
   }
-  const char* metrics[] = {"multiple_coherence_x_mean", "multiple_coherence_y_mean",
+  const char* metrics[] = {"multiple_coherence_x_mean",  "multiple_coherence_y_mean",
                            "partial_coherence_h11_mean", "partial_coherence_h12_mean",
                            "partial_coherence_h21_mean", "partial_coherence_h22_mean",
-                           "frf_vaf_h11_percent", "frf_vaf_h12_percent", "frf_vaf_h21_percent",
-                           "frf_vaf_h22_percent"};
-  const char* labels[] = {"mult. x", "mult. y", "part. h11", "part. h12", "part. h21",
-                          "part. h22", "FRF VAF h11 %", "FRF VAF h12 %", "FRF VAF h21 %",
-                          "FRF VAF h22 %"};
+                           "frf_vaf_h11_percent",        "frf_vaf_h12_percent",
+                           "frf_vaf_h21_percent",        "frf_vaf_h22_percent"};
+  const char* labels[] = {"mult. x",       "mult. y",      "part. h11",     "part. h12",
+                          "part. h21",     "part. h22",    "FRF VAF h11 %", "FRF VAF h12 %",
+                          "FRF VAF h21 %", "FRF VAF h22 %"};
   md << "Paper (no numbers, a figure): with uncoupled inputs and no noise, all coherences are "
         "near 1.0 over the band for 512-point segments and drop as the segment shortens (bias), "
         "while the estimated TFs are barely affected. Ours: mean over the summary band of each "
@@ -454,14 +453,13 @@ void write_perreault1999_report(const StudySpec& spec, const std::vector<ResultR
                          return q == 0 ? std::abs(ours - paper) <= 2.0 : ours >= paper - 2.0;
                        }},
                       folder, md);
-  pass &= write_table(summaries,
-                      {"fig6b_positions", "position", "position", kFig6b, 4,
-                       "Fig 6B: nonlinear arm (eq 14) at four workspace positions",
-                       "R2 >= 98.5 and every IRF VAF >= 99",
-                       [](int q, double ours, double) {
-                         return q == 0 ? ours >= 98.5 : ours >= 99.0;
-                       }},
-                      folder, md);
+  pass &=
+      write_table(summaries,
+                  {"fig6b_positions", "position", "position", kFig6b, 4,
+                   "Fig 6B: nonlinear arm (eq 14) at four workspace positions",
+                   "R2 >= 98.5 and every IRF VAF >= 99",
+                   [](int q, double ours, double) { return q == 0 ? ours >= 98.5 : ours >= 99.0; }},
+                  folder, md);
   pass &= write_fig9(summaries, folder, md);
   md << "\n## Verdict\n\nAll criteria met: " << (pass ? "yes" : "**no**") << ".\n";
   data::write_file_atomically((std::filesystem::path(folder) / "report.md").string(), md.str());

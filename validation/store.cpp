@@ -114,12 +114,12 @@ ResultStore::ResultStore(const std::string& path, Mode mode, const StoreHeader& 
   if (mode == Mode::create) {
     remove_files(path);
   } else if (!std::filesystem::exists(path)) {
-    throw InputError(path + ": no such study store" +
-                     (mode == Mode::open_existing ? " to resume; run without --resume to start"
-                                                  : ""));
+    throw InputError(
+        path + ": no such study store" +
+        (mode == Mode::open_existing ? " to resume; run without --resume to start" : ""));
   }
-  const int flags = mode == Mode::read_only ? SQLITE_OPEN_READONLY
-                                            : (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
+  const int flags =
+      mode == Mode::read_only ? SQLITE_OPEN_READONLY : (SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
   if (sqlite3_open_v2(path.c_str(), &db_, flags | SQLITE_OPEN_FULLMUTEX, nullptr) != SQLITE_OK) {
     const std::string why = db_ ? sqlite3_errmsg(db_) : "out of memory";
     sqlite3_close(db_);
@@ -261,8 +261,8 @@ std::vector<ResultRow> ResultStore::rows() const {
                    path_);
   while (select.step()) {
     rows.push_back({static_cast<int>(select.integer(0)), select.text(1), select.text(2),
-                    static_cast<int>(select.integer(3)), seed_value(select.text(4)),
-                    select.text(5), select.real(6)});
+                    static_cast<int>(select.integer(3)), seed_value(select.text(4)), select.text(5),
+                    select.real(6)});
   }
   return rows;
 }

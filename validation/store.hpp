@@ -35,11 +35,11 @@ struct StoreHeader {
 struct CellRecord {
   int cell = 0;
   std::string design;
-  std::string levels_json;       ///< canonical JSON of {factor: level}
+  std::string levels_json;  ///< canonical JSON of {factor: level}
   int replicate = 0;
   std::uint64_t seed = 0;
-  bool ok = true;                ///< false when the evaluator reported a numerical failure
-  std::string message;           ///< why it failed (empty when ok)
+  bool ok = true;       ///< false when the evaluator reported a numerical failure
+  std::string message;  ///< why it failed (empty when ok)
   std::string started_utc;
   std::string finished_utc;
   std::map<std::string, double> metrics;  ///< metric -> value (empty for a failed cell)

@@ -63,8 +63,7 @@ CellOutcome synthetic_evaluator(const nlohmann::json& spec, std::uint64_t seed) 
     running_mean += delta / static_cast<double>(i + 1);
     m2 += delta * (x - running_mean);
   }
-  const double sample_sd =
-      samples > 1 ? std::sqrt(m2 / static_cast<double>(samples - 1)) : 0.0;
+  const double sample_sd = samples > 1 ? std::sqrt(m2 / static_cast<double>(samples - 1)) : 0.0;
   return {Status::success(),
           {{"sample_mean", running_mean}, {"sample_sd", sample_sd}, {"first_draw", first}}};
 }
@@ -110,8 +109,8 @@ std::map<std::string, double> kept_metrics(const StudySpec& spec, int design_ind
       std::string made;
       for (const auto& [m, v] : metrics) made += (made.empty() ? "" : ", ") + m;
       throw InputError(spec.source + ": key 'designs/" + std::to_string(design_index) +
-                       "/metrics': evaluator '" + design.evaluator + "' makes no metric '" +
-                       name + "'; it makes: " + made);
+                       "/metrics': evaluator '" + design.evaluator + "' makes no metric '" + name +
+                       "'; it makes: " + made);
     }
     kept.insert(*it);
   }
@@ -270,8 +269,8 @@ StudyResult run_study(const StudySpec& spec, const StudyOptions& options,
     const std::string label =
         "study " + spec.name +
         (world.size() > 1 ? " (rank 0 of " + std::to_string(world.size()) + ")" : "");
-    ProgressBar progress(label, static_cast<int>(done.size()) + mine,
-                         static_cast<int>(done.size()), options.progress && world.rank() == 0);
+    ProgressBar progress(label, static_cast<int>(done.size()) + mine, static_cast<int>(done.size()),
+                         options.progress && world.rank() == 0);
     try {
       compute_cells(spec, pending, evaluators, target, options.threads, progress);
     } catch (const InputError& e) {
@@ -297,18 +296,16 @@ StudyResult run_study(const StudySpec& spec, const StudyOptions& options,
     }
     world.barrier();  // the main store holds every cell before any rank returns
   }
-  const auto failed =
-      main_store ? main_store->failed_cells() : ResultStore(path, ResultStore::Mode::read_only)
-                                                    .failed_cells();
+  const auto failed = main_store ? main_store->failed_cells()
+                                 : ResultStore(path, ResultStore::Mode::read_only).failed_cells();
   result.cells_failed = static_cast<int>(failed.size());
   if (!failed.empty()) {
-    result.status = Status::failure(std::to_string(failed.size()) + " of " +
-                                    std::to_string(cells.size()) + " cells failed; first: cell " +
-                                    std::to_string(failed.front().first) + ": " +
-                                    failed.front().second);
+    result.status =
+        Status::failure(std::to_string(failed.size()) + " of " + std::to_string(cells.size()) +
+                        " cells failed; first: cell " + std::to_string(failed.front().first) +
+                        ": " + failed.front().second);
   }
-  result.wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
 
@@ -340,8 +337,8 @@ std::vector<SummaryRow> summarize(const std::vector<ResultRow>& rows) {
     const auto key = std::make_tuple(row.design, row.levels_json, row.metric);
     auto [it, fresh] = groups.try_emplace(key);
     if (fresh) {
-      summary.push_back({row.design, nlohmann::json::parse(row.levels_json), row.metric, 0, 0.0,
-                         0.0});
+      summary.push_back(
+          {row.design, nlohmann::json::parse(row.levels_json), row.metric, 0, 0.0, 0.0});
     }
     if (std::isfinite(row.value)) it->second.push_back(row.value);
   }
@@ -382,8 +379,8 @@ void write_summary_report(const StudySpec& spec, const std::vector<ResultRow>& r
                               summary_csv(spec, summary));
   std::ostringstream md;
   md << "# Study " << spec.name << "\n\n"
-     << "stiffid " << version() << ", spec hash `" << spec.hash() << "`, seed " << spec.seed
-     << ", " << spec.replicates << " replicate(s) per cell; values are mean +- SD over "
+     << "stiffid " << version() << ", spec hash `" << spec.hash() << "`, seed " << spec.seed << ", "
+     << spec.replicates << " replicate(s) per cell; values are mean +- SD over "
      << "replicates.\n";
   for (const Design& design : spec.designs) {
     std::vector<std::string> metrics;
@@ -413,8 +410,8 @@ void write_summary_report(const StudySpec& spec, const std::vector<ResultRow>& r
         const auto it = table.find({combo, m});
         char cell[96] = "";
         if (it != table.end()) {
-          std::snprintf(cell, sizeof cell, "%.4g +- %.2g (n=%d)", it->second->mean,
-                        it->second->sd, it->second->n);
+          std::snprintf(cell, sizeof cell, "%.4g +- %.2g (n=%d)", it->second->mean, it->second->sd,
+                        it->second->n);
         }
         md << ' ' << cell << " |";
       }
@@ -424,8 +421,7 @@ void write_summary_report(const StudySpec& spec, const std::vector<ResultRow>& r
   data::write_file_atomically((fs::path(folder) / "report.md").string(), md.str());
 }
 
-void write_report(const StudySpec& spec, const std::string& store_path,
-                  const std::string& folder) {
+void write_report(const StudySpec& spec, const std::string& store_path, const std::string& folder) {
   const auto reporters = builtin_reporters();
   const auto it = reporters.find(spec.report);
   if (it == reporters.end()) {
@@ -460,9 +456,10 @@ StudySpec load_study(const std::string& path_or_name) {
         known += (known.empty() ? "" : ", ") + entry.path().stem().string();
       }
     }
-    throw InputError("SPEC '" + path_or_name + "': no such study file and no built-in study of "
-                     "that name (built-in studies in " + folder.string() + ": " +
-                     (known.empty() ? "none" : known) + ")");
+    throw InputError("SPEC '" + path_or_name +
+                     "': no such study file and no built-in study of "
+                     "that name (built-in studies in " +
+                     folder.string() + ": " + (known.empty() ? "none" : known) + ")");
   }
   StudySpec spec = read_study_spec(file.string());
   return spec;

@@ -46,7 +46,8 @@ class EvaluatorRegistry {
 /// The evaluators shipped with stiffid:
 /// - "synthetic": seeded draws with no physics, to exercise and test runners (see
 ///   synthetic_evaluator);
-/// - "perreault1999.linear", "perreault1999.arm": Perreault et al. 1999 simulations (perreault1999.hpp).
+/// - "perreault1999.linear", "perreault1999.arm": Perreault et al. 1999 simulations
+/// (perreault1999.hpp).
 EvaluatorRegistry builtin_evaluators();
 
 /// "synthetic" evaluator. Spec keys: "mean" (default 0), "sd" (>= 0, default 1), "samples"
@@ -57,22 +58,22 @@ EvaluatorRegistry builtin_evaluators();
 CellOutcome synthetic_evaluator(const nlohmann::json& spec, std::uint64_t seed);
 
 struct StudyOptions {
-  std::string store_path;   ///< SQLite store; required
-  bool resume = false;      ///< continue the store at store_path (same spec hash) instead of
-                            ///< replacing it
-  int threads = 0;          ///< worker threads per process; 0 = all cores
-  bool progress = false;    ///< draw a progress bar on stderr (the CLI sets it when stderr is a TTY)
+  std::string store_path;  ///< SQLite store; required
+  bool resume = false;     ///< continue the store at store_path (same spec hash) instead of
+                           ///< replacing it
+  int threads = 0;         ///< worker threads per process; 0 = all cores
+  bool progress = false;   ///< draw a progress bar on stderr (the CLI sets it when stderr is a TTY)
 };
 
 struct StudyResult {
-  Status status;            ///< failure when some cells reported a numerical failure
-  int cells_total = 0;      ///< cells of the study
-  int cells_resumed = 0;    ///< cells found already stored (with --resume)
-  int cells_computed = 0;   ///< cells computed by this run (all ranks)
-  int cells_failed = 0;     ///< stored cells whose evaluator failed (all runs)
-  double wall_s = 0.0;      ///< wall time of this run, s
-  int ranks = 1;            ///< MPI processes (1 without mpirun)
-  bool is_root = true;      ///< false on MPI ranks other than 0, which must not export
+  Status status;           ///< failure when some cells reported a numerical failure
+  int cells_total = 0;     ///< cells of the study
+  int cells_resumed = 0;   ///< cells found already stored (with --resume)
+  int cells_computed = 0;  ///< cells computed by this run (all ranks)
+  int cells_failed = 0;    ///< stored cells whose evaluator failed (all runs)
+  double wall_s = 0.0;     ///< wall time of this run, s
+  int ranks = 1;           ///< MPI processes (1 without mpirun)
+  bool is_root = true;     ///< false on MPI ranks other than 0, which must not export
 };
 
 /// Runs the study: enumerates its cells, skips those already stored (when resuming), evaluates the
@@ -98,9 +99,9 @@ struct SummaryRow {
   std::string design;
   nlohmann::json levels;  ///< {factor: level}
   std::string metric;
-  int n = 0;              ///< finite values averaged
-  double mean = 0.0;      ///< NaN when n == 0
-  double sd = 0.0;        ///< sample SD (n - 1); 0 when n == 1, NaN when n == 0
+  int n = 0;          ///< finite values averaged
+  double mean = 0.0;  ///< NaN when n == 0
+  double sd = 0.0;    ///< sample SD (n - 1); 0 when n == 1, NaN when n == 0
 };
 /// Summary rows in order of first appearance (cell order, then metric name).
 std::vector<SummaryRow> summarize(const std::vector<ResultRow>& rows);

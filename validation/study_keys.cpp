@@ -31,8 +31,8 @@ double SpecKeys::number(const std::string& key, double fallback, double low, dou
 
 double SpecKeys::number(const std::string& key, double low, double high) {
   read_.insert(key);
-  const std::string range = "a number in [" + std::to_string(low) + ", " + std::to_string(high) +
-                            "]";
+  const std::string range =
+      "a number in [" + std::to_string(low) + ", " + std::to_string(high) + "]";
   if (!has(key) || !spec_.at(key).is_number()) fail(key, range);
   const double value = spec_.at(key).get<double>();
   if (!std::isfinite(value) || value < low || value > high) fail(key, range);
@@ -118,8 +118,7 @@ void SpecKeys::reject_unknown() const {
     if (!read_.count(item.key())) {
       std::string known;
       for (const auto& k : read_) known += (known.empty() ? "" : ", ") + k;
-      throw InputError(where_ + " key '" + item.key() + "': unknown key; expected one of " +
-                       known);
+      throw InputError(where_ + " key '" + item.key() + "': unknown key; expected one of " + known);
     }
   }
 }

@@ -16,7 +16,6 @@ using ordered = nlohmann::ordered_json;
 const std::regex kNamePattern("[A-Za-z0-9_.-]+");
 const std::regex kPlaceholder(R"(\$\{([^}]*)\})");
 
-
 class Where {
  public:
   Where(std::string source) : source_(std::move(source)) {}
@@ -45,8 +44,8 @@ std::string get_name(const ordered& object, const std::string& key, const std::s
   if (!object.contains(key)) where.fail(path + key, "missing; expected a name");
   const auto& value = object.at(key);
   if (!value.is_string() || !std::regex_match(value.get<std::string>(), kNamePattern)) {
-    where.fail(path + key, "expected a name of letters, digits, '_', '.' or '-', got " +
-                               value.dump());
+    where.fail(path + key,
+               "expected a name of letters, digits, '_', '.' or '-', got " + value.dump());
   }
   return value.get<std::string>();
 }
@@ -64,8 +63,9 @@ Design parse_design(const ordered& node, const std::string& path, const Where& w
     for (const auto& item : factors.items()) {
       const std::string key = path + "/factors/" + item.key();
       if (!std::regex_match(item.key(), kNamePattern) || item.key() == "replicate") {
-        where.fail(key, "expected a factor name of letters, digits, '_', '.' or '-' (not "
-                        "'replicate', which is reserved)");
+        where.fail(key,
+                   "expected a factor name of letters, digits, '_', '.' or '-' (not "
+                   "'replicate', which is reserved)");
       }
       if (!item.value().is_array() || item.value().empty()) {
         where.fail(key, "expected a non-empty array of levels");
@@ -82,9 +82,9 @@ Design parse_design(const ordered& node, const std::string& path, const Where& w
       design.factors.push_back(std::move(factor));
     }
   }
-  design.trial_template =
-      node.contains("template") ? nlohmann::json::parse(node.at("template").dump())
-                                : nlohmann::json::object();
+  design.trial_template = node.contains("template")
+                              ? nlohmann::json::parse(node.at("template").dump())
+                              : nlohmann::json::object();
   if (node.contains("metrics")) {
     const auto& metrics = node.at("metrics");
     if (!metrics.is_array()) where.fail(path + "/metrics", "expected an array of metric names");
@@ -122,8 +122,8 @@ void check_placeholders(const nlohmann::json& node, const Design& design, const 
       bool known = name == "replicate";
       for (const auto& f : design.factors) known = known || f.name == name;
       if (!known) {
-        where.fail(path, "placeholder ${" + name + "} names no factor of design '" + design.name +
-                             "'");
+        where.fail(path,
+                   "placeholder ${" + name + "} names no factor of design '" + design.name + "'");
       }
     }
   }
@@ -197,8 +197,11 @@ nlohmann::json StudySpec::to_json() const {
                             {"template", d.trial_template},
                             {"metrics", d.metrics}});
   }
-  return {{"name", name}, {"seed", seed},          {"replicates", replicates},
-          {"report", report}, {"designs", designs_json}};
+  return {{"name", name},
+          {"seed", seed},
+          {"replicates", replicates},
+          {"report", report},
+          {"designs", designs_json}};
 }
 
 std::string StudySpec::hash() const { return hex64(fnv1a64(to_json().dump())); }
@@ -237,8 +240,7 @@ StudySpec parse_study_spec(const std::string& text, const std::string& source) {
     spec.replicates = r.get<int>();
   }
   if (root.contains("report")) spec.report = get_name(root, "report", "", where);
-  if (!root.contains("designs") || !root.at("designs").is_array() ||
-      root.at("designs").empty()) {
+  if (!root.contains("designs") || !root.at("designs").is_array() || root.at("designs").empty()) {
     where.fail("designs", "expected a non-empty array of designs");
   }
   std::set<std::string> names;
@@ -260,8 +262,8 @@ StudySpec read_study_spec(const std::string& path) {
 
 std::uint64_t cell_seed(std::uint64_t study_seed, const std::string& design,
                         const nlohmann::json& levels, int replicate) {
-  const nlohmann::json identity = {{"design", design}, {"levels", levels},
-                                   {"replicate", replicate}};
+  const nlohmann::json identity = {
+      {"design", design}, {"levels", levels}, {"replicate", replicate}};
   return splitmix64(splitmix64(study_seed) ^ fnv1a64(identity.dump()));
 }
 

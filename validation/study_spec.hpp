@@ -43,10 +43,10 @@ struct Factor {
 
 struct Design {
   std::string name;
-  std::string evaluator;              ///< name of a cell evaluator in the registry
-  std::vector<Factor> factors;        ///< in file order; may be empty (one combination)
-  nlohmann::json trial_template;      ///< the "template" with ${...} placeholders
-  std::vector<std::string> metrics;   ///< metrics to keep; empty = every metric the evaluator makes
+  std::string evaluator;             ///< name of a cell evaluator in the registry
+  std::vector<Factor> factors;       ///< in file order; may be empty (one combination)
+  nlohmann::json trial_template;     ///< the "template" with ${...} placeholders
+  std::vector<std::string> metrics;  ///< metrics to keep; empty = every metric the evaluator makes
 };
 
 struct StudySpec {
@@ -55,7 +55,7 @@ struct StudySpec {
   int replicates = 1;
   std::string report = "summary";
   std::vector<Design> designs;
-  std::string source;                 ///< file path or built-in name, for messages
+  std::string source;  ///< file path or built-in name, for messages
 
   /// Canonical JSON of the effective spec (what the spec hash is computed from).
   nlohmann::json to_json() const;
@@ -67,11 +67,11 @@ struct StudySpec {
 
 /// One cell of a study: a design, one level per factor, one replicate.
 struct Cell {
-  int index = 0;              ///< global cell index, from 0
-  int design = 0;             ///< index into StudySpec::designs
-  nlohmann::json levels;      ///< {factor: level} (object, keys sorted)
-  int replicate = 0;          ///< 0 .. replicates-1
-  std::uint64_t seed = 0;     ///< cell_seed(...)
+  int index = 0;           ///< global cell index, from 0
+  int design = 0;          ///< index into StudySpec::designs
+  nlohmann::json levels;   ///< {factor: level} (object, keys sorted)
+  int replicate = 0;       ///< 0 .. replicates-1
+  std::uint64_t seed = 0;  ///< cell_seed(...)
 };
 
 /// Parses a study file's text; `source` names it in messages (InputError with line:column for a

@@ -11,6 +11,7 @@
 #include <random>
 #include <set>
 #include <sstream>
+
 #include "tests/support/support.hpp"
 
 namespace fs = std::filesystem;
@@ -58,10 +59,10 @@ BOOST_AUTO_TEST_CASE(writes_the_contract_keys_to_a_file) {
   const Scratch s("cli_frf");
   const fs::path json = s.path / "frf.json";
   const Run r = run_stiffid("\"" + kTrial +
-                            "\" --inputs fx,fy --outputs x,y --nfft 256 --overlap 0.5 "
-                            "-o \"" +
-                            json.string() + "\"",
-                        s);
+                                "\" --inputs fx,fy --outputs x,y --nfft 256 --overlap 0.5 "
+                                "-o \"" +
+                                json.string() + "\"",
+                            s);
   BOOST_REQUIRE_EQUAL(r.exit_code, 0);
   const auto j = nlohmann::json::parse(read_text(json));
   BOOST_CHECK((keys(j) == std::set<std::string>{"fs", "nfft", "segments", "inputs", "outputs",
@@ -141,8 +142,8 @@ BOOST_AUTO_TEST_CASE(stiffness_flag_writes_the_inverse_matrix) {
 BOOST_AUTO_TEST_CASE(missing_column_is_exit_2_naming_file_and_column) {
   const Scratch s("cli_frf");
   const fs::path json = s.path / "frf.json";
-  const Run r =
-      run_stiffid("\"" + kTrial + "\" --inputs fx,fz --outputs x,y -o \"" + json.string() + "\"", s);
+  const Run r = run_stiffid(
+      "\"" + kTrial + "\" --inputs fx,fz --outputs x,y -o \"" + json.string() + "\"", s);
   BOOST_CHECK_EQUAL(r.exit_code, 2);
   BOOST_CHECK(contains(r.err, "mimo_endpoint_c25_snr20.csv"));
   BOOST_CHECK(contains(r.err, "'fz'"));

@@ -24,7 +24,6 @@ struct Run {
   std::string err;
 };
 
-
 // This test program's temporary folder (removed when the program ends).
 const fs::path& scratch() {
   static const stiffid::test::TempFolder folder("cli_irf");
@@ -81,7 +80,8 @@ BOOST_AUTO_TEST_CASE(reference_case_json_has_the_contract_keys_and_values) {
 }
 
 BOOST_AUTO_TEST_CASE(writes_json_to_stdout_without_output_flag_and_accepts_pinv) {
-  const Run mdl = run("'" + kReference + ".csv' --inputs fx,fy --outputs x,y --lags -0.1:1.0 --pinv");
+  const Run mdl =
+      run("'" + kReference + ".csv' --inputs fx,fy --outputs x,y --lags -0.1:1.0 --pinv");
   BOOST_REQUIRE_MESSAGE(mdl.exit_code == 0, mdl.err);
   const nlohmann::json j = nlohmann::json::parse(mdl.out);
   BOOST_CHECK_EQUAL(j["inverse"].get<std::string>(), "mdl");
@@ -100,12 +100,11 @@ BOOST_AUTO_TEST_CASE(bad_lags_exit_2_naming_the_flag) {
   // -0.11 s is 5.5 samples at 50 Hz; 0.5:0.1 is reversed; the rest are not A:B numbers.
   for (const char* lags : {"abc", "0.5", "0.5:0.1", "-0.11:1.0", "0:1:2", "0:x", ":1", "0:1e999"}) {
     const Run r = run("'" + kReference + ".csv' --inputs fx,fy --outputs x,y --lags=" + lags);
-    BOOST_CHECK_MESSAGE(r.exit_code == 2, std::string("--lags ") + lags + " exit " +
-                                              std::to_string(r.exit_code));
+    BOOST_CHECK_MESSAGE(r.exit_code == 2,
+                        std::string("--lags ") + lags + " exit " + std::to_string(r.exit_code));
     BOOST_CHECK_MESSAGE(r.err.find("--lags") != std::string::npos, r.err);
   }
-  const Run too_long =
-      run("'" + kReference + ".csv' --inputs fx,fy --outputs x,y --lags -10:100");
+  const Run too_long = run("'" + kReference + ".csv' --inputs fx,fy --outputs x,y --lags -10:100");
   BOOST_CHECK_EQUAL(too_long.exit_code, 2);
   BOOST_CHECK_MESSAGE(too_long.err.find("--lags") != std::string::npos, too_long.err);
 }
@@ -116,14 +115,15 @@ BOOST_AUTO_TEST_CASE(missing_channel_or_file_exits_2_naming_the_file) {
   BOOST_CHECK_MESSAGE(r.err.find("mimo_endpoint_c25_snr20.csv") != std::string::npos, r.err);
   BOOST_CHECK_MESSAGE(r.err.find("fz") != std::string::npos, r.err);
 
-  const Run missing = run("'" + (scratch() / "nope.csv").string() +
-                          "' --inputs fx --outputs x --lags 0:0.1");
+  const Run missing =
+      run("'" + (scratch() / "nope.csv").string() + "' --inputs fx --outputs x --lags 0:0.1");
   BOOST_CHECK_EQUAL(missing.exit_code, 2);
   BOOST_CHECK_MESSAGE(missing.err.find("nope.csv") != std::string::npos, missing.err);
 
   const Run duplicate = run("'" + kReference + ".csv' --inputs fx,fx --outputs x --lags 0:0.1");
   BOOST_CHECK_EQUAL(duplicate.exit_code, 2);
-  const Run bad_rank = run("'" + kReference + ".csv' --inputs fx --outputs x --lags 0:0.1 --pinv 0");
+  const Run bad_rank =
+      run("'" + kReference + ".csv' --inputs fx --outputs x --lags 0:0.1 --pinv 0");
   BOOST_CHECK_EQUAL(bad_rank.exit_code, 2);
   BOOST_CHECK_MESSAGE(bad_rank.err.find("--pinv") != std::string::npos, bad_rank.err);
 }

@@ -1,8 +1,8 @@
 #include <boost/test/unit_test.hpp>
-#include <filesystem>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -41,7 +41,8 @@ BOOST_AUTO_TEST_CASE(reads_channels_units_and_rate_from_time_column) {
 }
 
 BOOST_AUTO_TEST_CASE(accepts_quoted_cells_crlf_and_comment_lines) {
-  const auto trial = d::parse_trial_csv("# made by hand\r\nt,\"fx\"\r\n0,\"1.5\"\r\n\r\n0.5,2\r\n", "q.csv");
+  const auto trial =
+      d::parse_trial_csv("# made by hand\r\nt,\"fx\"\r\n0,\"1.5\"\r\n\r\n0.5,2\r\n", "q.csv");
   BOOST_CHECK_CLOSE(trial.sample_rate_hz, 2.0, 1e-12);
   BOOST_CHECK_EQUAL(trial.samples(0, trial.index("fx")), 1.5);
   BOOST_CHECK_EQUAL(trial.samples(1, 0), 2.0);
@@ -82,10 +83,9 @@ BOOST_AUTO_TEST_CASE(missing_channel_and_file_are_named) {
   BOOST_CHECK_EXCEPTION(trial.index("fy"), stiffid::InputError, [](const auto& e) {
     return std::string(e.what()).find("c.csv: no channel 'fy'") != std::string::npos;
   });
-  BOOST_CHECK_EXCEPTION(d::read_csv("/nonexistent/trial.csv"), stiffid::InputError,
-                        [](const auto& e) {
-                          return std::string(e.what()).find("/nonexistent/trial.csv") == 0;
-                        });
+  BOOST_CHECK_EXCEPTION(
+      d::read_csv("/nonexistent/trial.csv"), stiffid::InputError,
+      [](const auto& e) { return std::string(e.what()).find("/nonexistent/trial.csv") == 0; });
   BOOST_CHECK_THROW(d::require_samples(trial, 256, "one Welch segment"), stiffid::InputError);
 }
 
@@ -126,7 +126,8 @@ BOOST_AUTO_TEST_CASE(atomic_write_leaves_no_temporary_and_fails_cleanly) {
   int files = 0;
   for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir)) ++files;
   BOOST_CHECK_EQUAL(files, 1);
-  BOOST_CHECK_THROW(d::write_file_atomically("/nonexistent/dir/out.json", "{}"), stiffid::InputError);
+  BOOST_CHECK_THROW(d::write_file_atomically("/nonexistent/dir/out.json", "{}"),
+                    stiffid::InputError);
 }
 
 namespace {
@@ -215,7 +216,8 @@ BOOST_AUTO_TEST_CASE(blank_and_comment_lines_inside_a_large_trial_are_skipped_in
   const auto trial = d::parse_trial_csv(text, "gaps.csv");
   BOOST_REQUIRE_EQUAL(trial.sample_count(), 60000);
   bool rows_in_order = true;
-  for (int r = 0; r < trial.sample_count(); ++r) rows_in_order = rows_in_order && trial.samples(r, 0) == r;
+  for (int r = 0; r < trial.sample_count(); ++r)
+    rows_in_order = rows_in_order && trial.samples(r, 0) == r;
   BOOST_CHECK(rows_in_order);
   // Row 59990 is on line 59992 of the plain text, and 6 inserted lines come before it.
   std::string bad = text;

@@ -1,7 +1,6 @@
-#include <boost/test/unit_test.hpp>
-
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
+#include <boost/test/unit_test.hpp>
 #include <random>
 
 #include "estimators/block_toeplitz.hpp"
@@ -86,8 +85,8 @@ BOOST_AUTO_TEST_CASE(indefinite_and_singular_matrices_are_refused) {
   BOOST_CHECK(!est::BlockToeplitzCholesky(scalar).ok());
   // Two identical channels: every block is rank one, T is singular.
   Eigen::MatrixXd twins(2, 6);
-  twins << 1.0, 1.0, 0.5, 0.5, 0.2, 0.2,
-           1.0, 1.0, 0.5, 0.5, 0.2, 0.2;
+  twins << 1.0, 1.0, 0.5, 0.5, 0.2, 0.2, 1.0, 1.0, 0.5, 0.5, 0.2, 0.2;
   const est::BlockToeplitzCholesky singular(twins);
-  BOOST_CHECK(!singular.ok() || singular.rcond(dense(twins).cwiseAbs().colwise().sum().maxCoeff()) < 1e-12);
+  BOOST_CHECK(!singular.ok() ||
+              singular.rcond(dense(twins).cwiseAbs().colwise().sum().maxCoeff()) < 1e-12);
 }

@@ -1,9 +1,10 @@
-#include <boost/test/unit_test.hpp>
-#include <random>
 #include <tbb/task_arena.h>
+
+#include <boost/test/unit_test.hpp>
+#include <cmath>
+#include <random>
 #include <string>
 #include <tuple>
-#include <cmath>
 
 #include "data/csv.hpp"
 #include "data/error.hpp"
@@ -65,7 +66,8 @@ BOOST_AUTO_TEST_CASE(matches_numpy_fixture) {
   // tests/data/irf/make_fixtures.py: 3 channels, 300 samples, lags -25..25, numpy slicing sums.
   const std::string dir = std::string(STIFFID_TEST_DATA_DIR) + "/irf/";
   const stiffid::data::Trial trial = stiffid::data::read_trial_csv(dir + "correlation_signals.csv");
-  const stiffid::data::CsvTable expected = stiffid::data::read_csv(dir + "correlation_expected.csv");
+  const stiffid::data::CsvTable expected =
+      stiffid::data::read_csv(dir + "correlation_expected.csv");
   const est::Correlations r = est::correlate(trial.columns({"a", "b", "c"}), {25, true});
   const std::string names = "abc";
   BOOST_REQUIRE_EQUAL(expected.row_count(), 51);
@@ -111,9 +113,8 @@ BOOST_AUTO_TEST_CASE(many_blocks_match_the_direct_sum) {
 BOOST_AUTO_TEST_CASE(blocked_convolution_matches_the_direct_sum) {
   // y_j(t) = sum_i sum_a g_ji(a) x_i(t - A - a), x zero outside the record, for causal,
   // two-sided and purely anticausal kernels, single and many blocks.
-  for (const auto& [samples, first, taps] :
-       {std::tuple{3000, -7, 30}, std::tuple{3000, 5, 100}, std::tuple{60, -20, 9},
-        std::tuple{2500, -300, 120}}) {
+  for (const auto& [samples, first, taps] : {std::tuple{3000, -7, 30}, std::tuple{3000, 5, 100},
+                                             std::tuple{60, -20, 9}, std::tuple{2500, -300, 120}}) {
     const Eigen::MatrixXd x = random_signals(samples, 2, 5 + taps);
     const est::BlockedSignals blocked(x, 0);
     std::mt19937_64 rng(taps);

@@ -18,7 +18,8 @@ BOOST_AUTO_TEST_CASE(basis_is_a_partition_of_unity_and_reproduces_linear_functio
   BOOST_CHECK_SMALL((b.rowwise().sum().array() - 1.0).abs().maxCoeff(), 1e-14);
   BOOST_CHECK_SMALL((b * greville - t).cwiseAbs().maxCoeff(), 1e-13);
   // Its derivative is then 1 everywhere.
-  BOOST_CHECK_SMALL(((spline.first_derivatives(t) * greville).array() - 1.0).abs().maxCoeff(), 1e-12);
+  BOOST_CHECK_SMALL(((spline.first_derivatives(t) * greville).array() - 1.0).abs().maxCoeff(),
+                    1e-12);
 }
 
 BOOST_AUTO_TEST_CASE(running_integrals_match_quadrature_and_derivatives_match_differences) {

@@ -17,13 +17,13 @@ namespace {
 
 constexpr double kRateHz = 4000.0;  // as the paper's simulations: 5 s at 4 kHz, pulse at 2.5 s
 constexpr double kOnsetS = 2.5;
-constexpr double kFreeS = 2.52;     // end of the 20 ms pulse: the free response starts here
+constexpr double kFreeS = 2.52;  // end of the 20 ms pulse: the free response starts here
 
 // A damped oscillation with closed-form phase integral: x_k(t) = Re(a_k exp(Phi(t - kFreeS))),
 // Phi(tau) = int_0^tau alpha + i omega.
 struct ClosedFormMode {
-  std::function<double(double)> f_hz;          // f(tau)
-  std::function<double(double)> alpha_per_s;   // alpha(tau)
+  std::function<double(double)> f_hz;               // f(tau)
+  std::function<double(double)> alpha_per_s;        // alpha(tau)
   std::function<std::complex<double>(double)> phi;  // Phi(tau), closed form
   std::complex<double> a0, a1;
 };
@@ -78,7 +78,8 @@ Errors track_errors(const DampedModesResult& r, int j, const ClosedFormMode& tru
     e.valid += r.modes[j].valid(i) ? 1 : 0;
     sf += std::pow(r.modes[j].frequency_hz(i) / truth.f_hz(tau) - 1.0, 2);
     sa += std::pow(r.modes[j].alpha_per_s(i) / truth.alpha_per_s(tau) - 1.0, 2);
-    sz += std::pow((r.modes[j].alpha_per_s(i) - truth.alpha_per_s(tau)) / r.modes[j].alpha_sd_per_s(i), 2);
+    sz += std::pow(
+        (r.modes[j].alpha_per_s(i) - truth.alpha_per_s(tau)) / r.modes[j].alpha_sd_per_s(i), 2);
   }
   e.alpha_z = std::sqrt(sz / e.samples);
   e.f_rel = std::sqrt(sf / e.samples);
@@ -183,8 +184,8 @@ BOOST_AUTO_TEST_CASE(noise_free_tracks_are_exact_when_the_spline_can_represent_t
   const Eigen::Index i1 = 20, i2 = i1 + static_cast<Eigen::Index>(r.rate_hz);
   for (int j = 0; j < 2; ++j) {
     const auto& phi = (j == 0 ? m1 : m2).phi;
-    const double expected = 20.0 / std::log(10.0) *
-                            (phi(r.t_s(i2) - kFreeS).real() - phi(r.t_s(i1) - kFreeS).real());
+    const double expected =
+        20.0 / std::log(10.0) * (phi(r.t_s(i2) - kFreeS).real() - phi(r.t_s(i1) - kFreeS).real());
     BOOST_CHECK_SMALL(r.modes[j].anr_db(i2) - r.modes[j].anr_db(i1) - expected, 1e-3);
   }
   // Mode shapes: amplitude ratio and relative phase of each mode (eqs 37-42), constant here. The
@@ -349,8 +350,8 @@ BOOST_AUTO_TEST_CASE(close_modes_with_a_weak_one_at_20_db_within_one_percent) {
     // changes at all (1.9 % for a linear one: next test, and scripts/tfa_crb_tracks.py).
     const Errors e = track_errors(r, j, modes[j], 2.6, 4.5);
     BOOST_TEST_MESSAGE("mode " << j << ": f " << e.f_rel << ", alpha " << e.alpha_rel
-                               << ", alpha error / SD " << e.alpha_z << ", valid " << e.valid
-                               << "/" << e.samples);
+                               << ", alpha error / SD " << e.alpha_z << ", valid " << e.valid << "/"
+                               << e.samples);
     BOOST_CHECK_SMALL(e.f_rel, 0.01);
     BOOST_CHECK_SMALL(e.alpha_z, 2.5);
     // Both modes are well above the noise for the first 1.5 s (ANR > 15 dB): all valid there.
@@ -428,13 +429,12 @@ BOOST_AUTO_TEST_CASE(decay_tie_is_taken_for_a_common_factor_and_refused_otherwis
       return std::complex<double>(-1.3 * tau, 2.0 * M_PI * 3.4 * tau);
     };
     const DampedModesResult r = fit_noisy(modes, 20.0, 11, from_data);
-    BOOST_TEST_MESSAGE("untied truth: energy of mode 2 " << energy_fraction(modes, 1)
-                                                         << ", tie SD " << r.decay_tie);
+    BOOST_TEST_MESSAGE("untied truth: energy of mode 2 " << energy_fraction(modes, 1) << ", tie SD "
+                                                         << r.decay_tie);
     BOOST_CHECK(r.decay_tie == 0.0 || r.decay_tie >= 0.1);
     for (int j = 0; j < 2; ++j) {
       const Errors e = track_errors(r, j, modes[j], 2.6, 4.5);
-      BOOST_TEST_MESSAGE("mode " << j << ": alpha " << e.alpha_rel << ", error / SD "
-                                 << e.alpha_z);
+      BOOST_TEST_MESSAGE("mode " << j << ": alpha " << e.alpha_rel << ", error / SD " << e.alpha_z);
       BOOST_CHECK_SMALL(e.alpha_z, 2.5);
     }
   }
@@ -450,16 +450,16 @@ std::vector<ClosedFormMode> rising_modes(double weak_amplitude, double rise0, do
     m.f_hz = [f0, rise](double tau) { return f0 * (1.0 + rise * sigmoid(5.0 * (tau - 0.8))); };
     m.alpha_per_s = [alpha](double) { return alpha; };
     m.phi = [f0, alpha, rise](double tau) {
-      return std::complex<double>(
-          alpha * tau, 2.0 * M_PI * f0 * (tau + rise * sigmoid_integral(tau, 5.0, 0.8)));
+      return std::complex<double>(alpha * tau,
+                                  2.0 * M_PI * f0 * (tau + rise * sigmoid_integral(tau, 5.0, 0.8)));
     };
     m.a0 = a0;
     m.a1 = a1;
     return m;
   };
-  return {mode(2.4, -1.0, rise0, {1.0, 0.0}, {0.45, 0.05}),
-          mode(3.4, -1.3, rise1, {-0.4 * weak_amplitude, 0.1 * weak_amplitude},
-               {weak_amplitude, 0.0})};
+  return {
+      mode(2.4, -1.0, rise0, {1.0, 0.0}, {0.45, 0.05}),
+      mode(3.4, -1.3, rise1, {-0.4 * weak_amplitude, 0.1 * weak_amplitude}, {weak_amplitude, 0.0})};
 }
 
 BOOST_AUTO_TEST_CASE(frequency_tie_is_taken_for_a_common_factor_and_refused_otherwise) {
@@ -503,8 +503,8 @@ BOOST_AUTO_TEST_CASE(frequency_tie_is_taken_for_a_common_factor_and_refused_othe
   {
     const std::vector<ClosedFormMode> modes = rising_modes(0.8, 0.0, 0.4);
     const DampedModesResult r = fit_noisy(modes, 20.0, 11, from_data);
-    BOOST_TEST_MESSAGE("untied truth: energy of mode 2 " << energy_fraction(modes, 1)
-                                                         << ", tie SD " << r.frequency_tie);
+    BOOST_TEST_MESSAGE("untied truth: energy of mode 2 " << energy_fraction(modes, 1) << ", tie SD "
+                                                         << r.frequency_tie);
     BOOST_CHECK(r.frequency_tie == 0.0 || r.frequency_tie >= 0.1);
     for (int j = 0; j < 2; ++j) {
       const Errors e = track_errors(r, j, modes[j], 2.6, 4.5);
@@ -609,7 +609,9 @@ BOOST_AUTO_TEST_CASE(a_mode_sinking_into_the_noise_is_flagged_invalid) {
   // track must be flagged invalid there, and wherever it is flagged valid it must be right.
   std::vector<ClosedFormMode> modes = close_modes(0.3);
   modes[1].alpha_per_s = [](double) { return -6.0; };
-  modes[1].phi = [](double tau) { return std::complex<double>(-6.0 * tau, 2.0 * M_PI * 3.4 * tau); };
+  modes[1].phi = [](double tau) {
+    return std::complex<double>(-6.0 * tau, 2.0 * M_PI * 3.4 * tau);
+  };
   Eigen::MatrixXd x = response(modes);
   add_noise(x, 10.0, 11);
   const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, DampedModesOptions{});
@@ -759,9 +761,8 @@ BOOST_AUTO_TEST_CASE(a_lost_modes_tracks_go_on_as_a_damped_trend_not_a_straight_
   BOOST_REQUIRE(lost > 0);
   line_error = std::sqrt(line_error / lost);
   trend_error = std::sqrt(trend_error / lost);
-  BOOST_TEST_MESSAGE("after the loss: f RMS relative error, straight line " << line_error
-                                                                               << ", damped trend "
-                                                                               << trend_error);
+  BOOST_TEST_MESSAGE("after the loss: f RMS relative error, straight line "
+                     << line_error << ", damped trend " << trend_error);
   // The strong mode is never lost: unchanged.
   BOOST_CHECK(trend.modes[0].frequency_hz == line.modes[0].frequency_hz);
   BOOST_CHECK_LT(trend_error, line_error);

@@ -1,7 +1,7 @@
-#include <boost/test/unit_test.hpp>
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <Eigen/QR>
+#include <boost/test/unit_test.hpp>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -153,10 +153,12 @@ BOOST_AUTO_TEST_CASE(reference_case_irfs_vaf_and_r2) {
   for (int j = 0; j < 2; ++j) {
     for (int i = 0; i < 2; ++i) {
       const auto values = ref["h"][outs[j]][ins[i]].get<std::vector<double>>();
-      const Eigen::VectorXd expected = Eigen::Map<const Eigen::VectorXd>(values.data(), values.size());
+      const Eigen::VectorXd expected =
+          Eigen::Map<const Eigen::VectorXd>(values.data(), values.size());
       // The 1e-6 relative (max error over the largest |h| of the subsystem); Psi has a
       // condition number ~2e4, so the two solvers agree to ~1e-11 and the CSV's 10 digits limit it.
-      const double rel = (r.irf(j, i) - expected).cwiseAbs().maxCoeff() / expected.cwiseAbs().maxCoeff();
+      const double rel =
+          (r.irf(j, i) - expected).cwiseAbs().maxCoeff() / expected.cwiseAbs().maxCoeff();
       BOOST_TEST_MESSAGE(outs[j] << "/" << ins[i] << " relative error " << rel);
       BOOST_CHECK_LT(rel, 1e-6);
     }
@@ -313,7 +315,7 @@ BOOST_AUTO_TEST_CASE(perfectly_coupled_inputs_fail_the_full_solve_but_not_the_ps
   BOOST_CHECK(full.status.message.find("singular") != std::string::npos);
   const est::IrfResult mdl = est::estimate_irf(x, y, fs, {0, 7, est::IrfInverse::mdl});
   BOOST_REQUIRE(mdl.status.ok);
-  BOOST_CHECK_LE(mdl.rank, 8);  // only 8 independent directions exist
+  BOOST_CHECK_LE(mdl.rank, 8);                     // only 8 independent directions exist
   BOOST_CHECK_CLOSE(mdl.r2_percent, 100.0, 1e-6);  // the output is still predicted exactly
 }
 

@@ -115,13 +115,11 @@ BOOST_AUTO_TEST_CASE(singular_values_are_those_of_the_stacked_hankel_matrix) {
   const double rate_hz = 200.0;
   std::mt19937_64 rng(20261202);
   std::normal_distribution<double> noise(0.0, 0.05);
-  Eigen::MatrixXd noisy =
-      damped_sum({{2.4, -1.5, {1.0, 0.0}, {0.5, 0.0}}, {3.4, -2.0, {-0.1, 0.0}, {0.2, 0.0}}},
-                 480, rate_hz);
+  Eigen::MatrixXd noisy = damped_sum(
+      {{2.4, -1.5, {1.0, 0.0}, {0.5, 0.0}}, {3.4, -2.0, {-0.1, 0.0}, {0.2, 0.0}}}, 480, rate_hz);
   for (Eigen::Index i = 0; i < noisy.size(); ++i) noisy.data()[i] += noise(rng);
-  const Eigen::MatrixXd close =
-      damped_sum({{3.0, -0.5, {1.0, 0.0}, {0.0, 1.0}}, {3.01, -0.5, {0.0, 1.0}, {1.0, 0.0}}}, 480,
-                 rate_hz);
+  const Eigen::MatrixXd close = damped_sum(
+      {{3.0, -0.5, {1.0, 0.0}, {0.0, 1.0}}, {3.01, -0.5, {0.0, 1.0}, {1.0, 0.0}}}, 480, rate_hz);
   for (const Eigen::MatrixXd* x : std::vector<const Eigen::MatrixXd*>{&noisy, &close}) {
     const auto r = estimate_matrix_pencil(*x, rate_hz, MatrixPencilOptions{});
     BOOST_REQUIRE(r.status.ok);

@@ -1,6 +1,6 @@
-#include <boost/test/unit_test.hpp>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <boost/test/unit_test.hpp>
 #include <cmath>
 #include <complex>
 #include <limits>
@@ -14,8 +14,8 @@
 using stiffid::InputError;
 using stiffid::estimators::DampedModesOptions;
 using stiffid::estimators::fit_damped_modes;
-using stiffid::estimators::ModalMapping;
 using stiffid::estimators::modal_parameters;
+using stiffid::estimators::ModalMapping;
 using stiffid::estimators::ModalParametersOptions;
 
 namespace {
@@ -44,8 +44,7 @@ Eigen::MatrixXd free_response(const Eigen::Matrix2d& m, const Eigen::Matrix2d& k
   for (int i = 0; i < s; ++i) {
     const double tau = i / kRateHz - kFreeS;
     if (tau < 0.0) continue;
-    const Eigen::Vector4cd state =
-        v * (lambda.array() * tau).exp().matrix().cwiseProduct(coef);
+    const Eigen::Vector4cd state = v * (lambda.array() * tau).exp().matrix().cwiseProduct(coef);
     q.row(i) = state.head<2>().real().transpose();
   }
   return q;
@@ -85,10 +84,11 @@ std::pair<double, double> worst_errors(const Case& cs, ModalMapping mapping,
     // Noise-free input is fitted as 40 dB data (the noise floor of damped_modes.cpp): a frame may
     // be invalid only because a mode has sunk below that floor (ANR < 0 dB), never otherwise.
     double weakest_anr_db = std::numeric_limits<double>::infinity();
-    for (const auto& track : modes.modes) weakest_anr_db = std::min(weakest_anr_db, track.anr_db(i));
-    BOOST_CHECK_MESSAGE(r.valid(i) || weakest_anr_db < DampedModesOptions{}.anr_threshold_db,
-                        "t = " << r.t_s(i) << " s invalid with every mode's ANR >= "
-                               << weakest_anr_db << " dB");
+    for (const auto& track : modes.modes)
+      weakest_anr_db = std::min(weakest_anr_db, track.anr_db(i));
+    BOOST_CHECK_MESSAGE(
+        r.valid(i) || weakest_anr_db < DampedModesOptions{}.anr_threshold_db,
+        "t = " << r.t_s(i) << " s invalid with every mode's ANR >= " << weakest_anr_db << " dB");
     ek = std::max(ek, (r.stiffness[i] - cs.k).cwiseAbs().maxCoeff() / cs.k.cwiseAbs().maxCoeff());
     ec = std::max(ec, (r.damping[i] - cs.c).cwiseAbs().maxCoeff() / cs.c.cwiseAbs().maxCoeff());
   }
@@ -148,7 +148,8 @@ BOOST_AUTO_TEST_CASE(a_lost_modes_shape_is_completed_from_the_valid_ones) {
     corrupt.modes[1].valid(i) = false;
   }
   auto flagged_valid = corrupt;
-  for (Eigen::Index i = 0; i < flagged_valid.t_s.size(); ++i) flagged_valid.modes[1].valid(i) = true;
+  for (Eigen::Index i = 0; i < flagged_valid.t_s.size(); ++i)
+    flagged_valid.modes[1].valid(i) = true;
   const auto completed = modal_parameters(corrupt, {cs.m}, {});
   const auto polar = modal_parameters(flagged_valid, {cs.m}, {});
   double ek = 0.0, ec = 0.0, ek_polar = 0.0;
@@ -163,7 +164,9 @@ BOOST_AUTO_TEST_CASE(a_lost_modes_shape_is_completed_from_the_valid_ones) {
     ek_polar = std::max(ek_polar, (polar.stiffness[i] - cs.k).cwiseAbs().maxCoeff() / scale_k);
     // P stays orthonormal
     BOOST_CHECK_SMALL((completed.eigenvectors[i].transpose() * completed.eigenvectors[i] -
-                       Eigen::Matrix2d::Identity()).norm(), 1e-12);
+                       Eigen::Matrix2d::Identity())
+                          .norm(),
+                      1e-12);
   }
   BOOST_TEST_MESSAGE(frames << " frames: completed K " << ek << ", C " << ec << "; polar K "
                             << ek_polar);
@@ -248,10 +251,10 @@ BOOST_AUTO_TEST_CASE(tracks_feed_the_spectrogram_pipelines_modal_analysis) {
   double ek = 0.0, ec = 0.0;
   for (Eigen::Index i = 0; i < r.time_s.size(); ++i) {
     if (r.time_s(i) < 2.6 || r.time_s(i) > 4.5) continue;
-    ek = std::max(ek, (r.stiffness_nm_per_rad[i] - cs.k).cwiseAbs().maxCoeff() /
-                          cs.k.cwiseAbs().maxCoeff());
-    ec = std::max(ec, (r.damping_nms_per_rad[i] - cs.c).cwiseAbs().maxCoeff() /
-                          cs.c.cwiseAbs().maxCoeff());
+    ek = std::max(
+        ek, (r.stiffness_nm_per_rad[i] - cs.k).cwiseAbs().maxCoeff() / cs.k.cwiseAbs().maxCoeff());
+    ec = std::max(
+        ec, (r.damping_nms_per_rad[i] - cs.c).cwiseAbs().maxCoeff() / cs.c.cwiseAbs().maxCoeff());
   }
   BOOST_TEST_MESSAGE("chain through modal_analysis: K " << ek << ", C " << ec);
   BOOST_CHECK_SMALL(ek, 0.01);

@@ -58,9 +58,11 @@ BOOST_AUTO_TEST_CASE(single_decaying_cosine_gives_exact_frequency_decay_and_ampl
     const double t = r.time_s(m);
     worst_f = std::max(worst_f, std::abs(r.frequency_hz(m, 0) / f - 1));
     worst_a = std::max(worst_a, std::abs(r.decay_rate_per_s(m, 0) / alpha - 1));
-    worst_amp = std::max(worst_amp, std::abs(r.amplitude[0](m, 0) / (a0 * std::exp(alpha * t)) - 1));
+    worst_amp =
+        std::max(worst_amp, std::abs(r.amplitude[0](m, 0) / (a0 * std::exp(alpha * t)) - 1));
   }
-  BOOST_TEST_MESSAGE("worst relative errors: f " << worst_f << " alpha " << worst_a << " amp " << worst_amp);
+  BOOST_TEST_MESSAGE("worst relative errors: f " << worst_f << " alpha " << worst_a << " amp "
+                                                 << worst_amp);
   BOOST_CHECK_LT(worst_f, 1e-3);
   BOOST_CHECK_LT(worst_a, 1e-3);
   BOOST_CHECK_LT(worst_amp, 1e-3);
@@ -261,10 +263,10 @@ BOOST_AUTO_TEST_CASE(two_chirping_damped_modes_1_hz_apart_are_exact) {
   // and amplitudes at every frame to round-off, the cut windows at both ends included. The
   // stationary frame model lags the sweep: off by more than 0.01 Hz.
   const double fs = 400.0, duration = 3.0;
-  const double f0[2] = {2.4, 3.4}, df[2] = {0.6, 0.8};        // Hz, Hz/s
-  const double a0[2] = {-1.2, -2.3}, da[2] = {-0.2, -0.4};    // 1/s, 1/s^2
+  const double f0[2] = {2.4, 3.4}, df[2] = {0.6, 0.8};      // Hz, Hz/s
+  const double a0[2] = {-1.2, -2.3}, da[2] = {-0.2, -0.4};  // 1/s, 1/s^2
   const double amp[2] = {1.0, 0.45}, phase[2] = {0.3, -1.1};
-  const double shape[2][2] = {{1.0, -0.3}, {0.2, 1.0}};     // [mode][channel]
+  const double shape[2][2] = {{1.0, -0.3}, {0.2, 1.0}};  // [mode][channel]
   est::TfSignal s;
   s.sample_rate_hz = fs;
   const int n = static_cast<int>(std::lround(duration * fs));
@@ -294,8 +296,8 @@ BOOST_AUTO_TEST_CASE(two_chirping_damped_modes_1_hz_apart_are_exact) {
                               1.0,
                           1e-8);
       }
-      worst_stationary = std::max(worst_stationary,
-                                  std::abs(stationary.frequency_hz(m, j) - (f0[j] + df[j] * t)));
+      worst_stationary =
+          std::max(worst_stationary, std::abs(stationary.frequency_hz(m, j) - (f0[j] + df[j] * t)));
     }
   }
   BOOST_TEST_MESSAGE("two chirping modes: the stationary frame model is off by up to "
@@ -356,7 +358,7 @@ BOOST_AUTO_TEST_CASE(ridges_whose_fit_leaves_the_band_or_merges_are_not_valid) {
     }
   }
   BOOST_TEST_MESSAGE("real pole + 6 Hz mode: " << invalid << " of " << 2 * sg.frames()
-                     << " fits invalid");
+                                               << " fits invalid");
   BOOST_CHECK_GT(invalid, sg.frames() / 2);  // the case does exercise the flags
   BOOST_CHECK_EQUAL(vouched_bad, 0);
 }
@@ -391,8 +393,8 @@ BOOST_AUTO_TEST_CASE(invalid_frames_are_bridged_from_their_valid_neighbours) {
 
 BOOST_AUTO_TEST_CASE(window_slopes_are_the_derivatives_of_the_values) {
   // Central differences (step 1e-6, error ~1e-10) against the analytic slopes.
-  for (const auto& w : {est::TfWindow::kaiser(3.0), est::TfWindow::hann(),
-                        est::TfWindow::gaussian(0.2)}) {
+  for (const auto& w :
+       {est::TfWindow::kaiser(3.0), est::TfWindow::hann(), est::TfWindow::gaussian(0.2)}) {
     for (double x = -0.99; x < 1.0; x += 0.07) {
       const double fd = (w.value(x + 1e-6) - w.value(x - 1e-6)) / 2e-6;
       BOOST_CHECK_SMALL(w.slope(x) - fd, 1e-6);

@@ -1,9 +1,10 @@
+#include <tbb/task_arena.h>
+
 #include <boost/test/unit_test.hpp>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
-#include <tbb/task_arena.h>
 
 #include "data/error.hpp"
 #include "estimators/spectra.hpp"

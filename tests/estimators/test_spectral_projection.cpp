@@ -3,9 +3,9 @@
 // the pseudo-inverse solve it serves, on random, indefinite, clustered and rank-deficient
 // matrices.
 
-#include <boost/test/unit_test.hpp>
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <boost/test/unit_test.hpp>
 #include <cmath>
 #include <random>
 
@@ -65,8 +65,10 @@ BOOST_AUTO_TEST_CASE(random_symmetric_matrices_match_the_full_decomposition) {
   std::mt19937_64 rng(3);
   for (const int n : {1, 2, 3, 10, 57, 200}) {
     const Eigen::MatrixXd r = random_matrix(n, n, rng);
-    check(0.5 * (r + r.transpose()), random_matrix(n, 2, rng), "indefinite n = " + std::to_string(n));
-    check(r * r.transpose(), random_matrix(n, 3, rng), "positive definite n = " + std::to_string(n));
+    check(0.5 * (r + r.transpose()), random_matrix(n, 2, rng),
+          "indefinite n = " + std::to_string(n));
+    check(r * r.transpose(), random_matrix(n, 3, rng),
+          "positive definite n = " + std::to_string(n));
   }
 }
 
@@ -104,6 +106,7 @@ BOOST_AUTO_TEST_CASE(diagonal_and_already_tridiagonal_inputs) {
   }
   const est::SpectralProjection sp(t, Eigen::MatrixXd::Ones(9, 1));
   for (int k = 0; k < 9; ++k) {
-    BOOST_TEST(std::abs(sp.eigenvalues()(k) - (2.0 - 2.0 * std::cos((k + 1) * M_PI / 10.0))) < 1e-14);
+    BOOST_TEST(std::abs(sp.eigenvalues()(k) - (2.0 - 2.0 * std::cos((k + 1) * M_PI / 10.0))) <
+               1e-14);
   }
 }

@@ -23,7 +23,8 @@ namespace {
 const std::string kTrial = std::string(STIFFID_TEST_DATA_DIR) + "/tfa/posture_constant.csv";
 
 int run(const std::string& args) {
-  const int status = std::system((std::string(STIFFID_BINARY) + " tfa " + args + " 2>/dev/null").c_str());
+  const int status =
+      std::system((std::string(STIFFID_BINARY) + " tfa " + args + " 2>/dev/null").c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
@@ -104,23 +105,40 @@ BOOST_AUTO_TEST_CASE(chirped_frame_fits_are_the_default_of_the_spectrogram_metho
 
 BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode) {
   const fs::path out = scratch("modal.json");
-  BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --decimate-hz 200 --knots-s 0.1 -o " +
-                          out.string()),
-                      0);
+  BOOST_REQUIRE_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --decimate-hz 200 --knots-s 0.1 -o " +
+          out.string()),
+      0);
   const nlohmann::json j = read_json(out);
   BOOST_CHECK_EQUAL(j["method"], "modal");
-  for (const char* key : {"t_s", "f_hz", "amplitude", "alpha_per_s", "gamma_per_s",
-                          "eta_squared_per_s2", "K_nm_per_rad", "C_nms_per_rad", "eigenvectors",
-                          "normalized_force", "options", "valid", "anr_db", "K_valid",
-                          "noise_covariance_rad2", "residual_rms_whitened", "iterations",
-                          "decay_ratio", "frequency_ratio", "real_terms", "offset_rad",
+  for (const char* key : {"t_s",
+                          "f_hz",
+                          "amplitude",
+                          "alpha_per_s",
+                          "gamma_per_s",
+                          "eta_squared_per_s2",
+                          "K_nm_per_rad",
+                          "C_nms_per_rad",
+                          "eigenvectors",
+                          "normalized_force",
+                          "options",
+                          "valid",
+                          "anr_db",
+                          "K_valid",
+                          "noise_covariance_rad2",
+                          "residual_rms_whitened",
+                          "iterations",
+                          "decay_ratio",
+                          "frequency_ratio",
+                          "real_terms",
+                          "offset_rad",
                           "track_roughness_local"}) {
     BOOST_CHECK_MESSAGE(j.contains(key), key);
   }
-  for (const char* key : {"track_roughness", "decay_tie", "decay_tie_from_data", "frequency_tie",
-                          "frequency_tie_from_data", "shape_weight", "real_terms",
-                          "real_terms_from_data", "offsets", "shape_refit", "shape_phase_factor",
-                          "local_roughness_dof", "lost_track_time_s"}) {
+  for (const char* key :
+       {"track_roughness", "decay_tie", "decay_tie_from_data", "frequency_tie",
+        "frequency_tie_from_data", "shape_weight", "real_terms", "real_terms_from_data", "offsets",
+        "shape_refit", "shape_phase_factor", "local_roughness_dof", "lost_track_time_s"}) {
     BOOST_CHECK_MESSAGE(j["options"].contains(key), key);
   }
   // The noise-free constant-K trial needs no rough tracks: the shape refit is not taken, and the
@@ -134,14 +152,12 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
                     0);
   // A negative nu of the local roughness is refused by name (exit 2), and nothing is written.
   const fs::path bad = scratch("bad_local.json");
-  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --local-roughness-dof -1 -o " +
-                        bad.string()),
-                    2);
+  BOOST_CHECK_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --local-roughness-dof -1 -o " + bad.string()), 2);
   BOOST_CHECK(!fs::exists(bad));
   // So is a lost-track time constant that is not a number.
-  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --lost-track-time-s nan -o " +
-                        bad.string()),
-                    2);
+  BOOST_CHECK_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --lost-track-time-s nan -o " + bad.string()), 2);
   BOOST_CHECK(!fs::exists(bad));
   BOOST_CHECK(j["options"]["offsets"].get<bool>());
   BOOST_CHECK(j["options"]["second_order"].get<bool>());
@@ -160,9 +176,8 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
     // Constant K scales neither frequency: the tie from the data holds, its ratio is the two
     // frequencies' (~1.4, the modes of K = [35 5; 5 20] N m/rad on the arm).
     const fs::path tied = scratch("frequency_tie.json");
-    BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --frequency-tie -1 -o " +
-                            tied.string()),
-                        0);
+    BOOST_REQUIRE_EQUAL(
+        run(kTrial + " --angles th1,th2 --onset 2.5 --frequency-tie -1 -o " + tied.string()), 0);
     const nlohmann::json t = read_json(tied);
     BOOST_CHECK(t["options"]["frequency_tie_from_data"].get<bool>());
     BOOST_CHECK_GT(t["options"]["frequency_tie"].get<double>(), 0.0);
@@ -192,9 +207,8 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   // damping of the noise-free constant-K trial is classical: both give K0 within 1 %.
   BOOST_CHECK_EQUAL(j["options"]["mapping"], "eq48");
   const fs::path exact = scratch("state_space.json");
-  BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --mapping state_space -o " +
-                          exact.string()),
-                      0);
+  BOOST_REQUIRE_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --mapping state_space -o " + exact.string()), 0);
   const nlohmann::json e = read_json(exact);
   BOOST_CHECK_EQUAL(e["options"]["mapping"], "state_space");
   BOOST_CHECK(e["f_hz"] == j["f_hz"]);
@@ -205,14 +219,17 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --mapping complex", err), 2);
   BOOST_CHECK_MESSAGE(err.find("--mapping") != std::string::npos, err);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --method spectrogram --mapping "
-                             "state_space", err),
+                                 "state_space",
+                        err),
                     2);
   BOOST_CHECK_MESSAGE(err.find("only the modal method") != std::string::npos, err);
   // Design (a), sliding windows: the same keys, estimates from half a window after the first
   // fitted sample to half a window before the last.
   const fs::path sliding = scratch("sliding.json");
-  BOOST_REQUIRE_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --design sliding "
-                          "--sliding-window-s 0.5 -o " + sliding.string()),
+  BOOST_REQUIRE_EQUAL(run(kTrial +
+                          " --angles th1,th2 --onset 2.5 --design sliding "
+                          "--sliding-window-s 0.5 -o " +
+                          sliding.string()),
                       0);
   const nlohmann::json s = read_json(sliding);
   BOOST_CHECK_EQUAL(s["options"]["design"], "sliding");
@@ -363,9 +380,14 @@ BOOST_AUTO_TEST_CASE(bad_input_exits_2_without_writing) {
                           why.find("(5 s)") != std::string::npos,
                       why);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset soon -o " + out.string()), 2);
-  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --window blackman -o " + out.string()), 2);
-  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --real-terms 1000 -o " + out.string()), 2);
-  BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --design sliding --sliding-window-s -1 -o " + out.string()), 2);
+  BOOST_CHECK_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --window blackman -o " + out.string()), 2);
+  BOOST_CHECK_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --real-terms 1000 -o " + out.string()), 2);
+  BOOST_CHECK_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --design sliding --sliding-window-s -1 -o " +
+          out.string()),
+      2);
   const fs::path spec = scratch("subject.json");
   std::ofstream(spec) << "{\"l1_m\": 0.3, \"mass\": 2}";
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --subject " + spec.string() +

@@ -22,8 +22,8 @@ Eigen::Vector2d piovesan_posture() {
 }
 
 /// 5 s at `fs` of M x'' + C x' + K x = 0 from t = onset with x = 0, x' = v0 (the state right after
-/// an ideal impulse), x = 0 before; angles = posture + x. Closed form: x(t) = Re sum_i V_i e^{l_i t}
-/// b_i with the eigenvectors V of the state matrix [0 I; -M^-1 K, -M^-1 C].
+/// an ideal impulse), x = 0 before; angles = posture + x. Closed form: x(t) = Re sum_i V_i e^{l_i
+/// t} b_i with the eigenvectors V of the state matrix [0 I; -M^-1 K, -M^-1 C].
 stiffid::data::Trial free_response_trial(const Eigen::Matrix2d& k, const Eigen::Matrix2d& c,
                                          const Eigen::Vector2d& v0, double fs, double onset_s) {
   const Eigen::Vector2d theta0 = piovesan_posture();
@@ -73,7 +73,7 @@ double worst_relative_error(const est::TfaResult& r, bool damping, const Eigen::
 
 BOOST_AUTO_TEST_CASE(constant_k_and_c_are_recovered_to_one_percent_from_a_free_response) {
   Eigen::Matrix2d k;
-  k << 35, 5, 5, 20;                 // Piovesan eq 52, N m/rad
+  k << 35, 5, 5, 20;                   // Piovesan eq 52, N m/rad
   const Eigen::Matrix2d c = 0.01 * k;  // N m s/rad
   // Initial joint velocity of a 5 N x 20 ms push along +y at the hand: M^-1 J^T f dt.
   const Eigen::Vector2d theta0 = piovesan_posture();
@@ -92,9 +92,9 @@ BOOST_AUTO_TEST_CASE(constant_k_and_c_are_recovered_to_one_percent_from_a_free_r
     BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
     const double ek = worst_relative_error(r, false, k, 2.6, 4.5);
     const double ec = worst_relative_error(r, true, c, 2.6, 4.5);
-    BOOST_TEST_MESSAGE(est::to_string(method) << ": worst |K - K0| / max|K0| = " << ek << ", C: "
-                                              << ec << ", frequencies "
-                                              << r.modal.omega_rad_per_s.row(200) / (2 * M_PI));
+    BOOST_TEST_MESSAGE(est::to_string(method)
+                       << ": worst |K - K0| / max|K0| = " << ek << ", C: " << ec << ", frequencies "
+                       << r.modal.omega_rad_per_s.row(200) / (2 * M_PI));
     // 1 % of the largest coefficient (issues 6 and 7). The signal is an exact sum of two damped
     // cosines, so what remains is the Savitzky-Golay edge fit (spectrogram), the spline tracks
     // (modal) and the decimation filter's pass-band ripple.

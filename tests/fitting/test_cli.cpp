@@ -37,8 +37,8 @@ nlohmann::json read(const std::string& path) {
 
 BOOST_AUTO_TEST_CASE(fit_writes_the_issue_json) {
   const std::string out = temp("kv2.json");
-  BOOST_TEST(run("fit kv " + kDir + "kv2.csv --inputs f1,f2 --outputs x1,x2 --starts 2 --seed 3 -o " +
-                 out) == 0);
+  BOOST_TEST(run("fit kv " + kDir +
+                 "kv2.csv --inputs f1,f2 --outputs x1,x2 --starts 2 --seed 3 -o " + out) == 0);
   const nlohmann::json j = read(out);
   BOOST_TEST(j.at("model") == "kv");
   BOOST_TEST(j.at("dof") == 2);
@@ -68,9 +68,12 @@ BOOST_AUTO_TEST_CASE(fit_bad_input_exits_2_and_non_convergence_exits_1_without_o
   const std::string out = temp("bad.json");
   BOOST_TEST(run("fit maxwell " + kDir + "kv1.csv --inputs f1 --outputs x1 -o " + out) == 2);
   BOOST_TEST(run("fit kv " + kDir + "kv1.csv --inputs f1,f2 --outputs x1 -o " + out) == 2);
-  BOOST_TEST(run("fit kv " + kDir + "kv1.csv --inputs f1 --outputs x1 --hold cubic -o " + out) == 2);
-  BOOST_TEST(run("fit kv " + kDir + "kv2.csv --inputs f1,f2 --outputs x1,x2 --starts 1 "
-                 "--max-iterations 1 -o " + out) == 1);
+  BOOST_TEST(run("fit kv " + kDir + "kv1.csv --inputs f1 --outputs x1 --hold cubic -o " + out) ==
+             2);
+  BOOST_TEST(run("fit kv " + kDir +
+                 "kv2.csv --inputs f1,f2 --outputs x1,x2 --starts 1 "
+                 "--max-iterations 1 -o " +
+                 out) == 1);
   BOOST_TEST(!std::filesystem::exists(out));
 }
 
@@ -78,16 +81,17 @@ BOOST_AUTO_TEST_CASE(regress_writes_the_issue_json) {
   const std::string out = temp("regress.json");
   std::string files;
   for (const char* onset : {"2.5", "3.0"}) {
-    for (int d = 0; d < 8; ++d) files += " " + kDir + "pulse_" + onset + "_d" + std::to_string(d) + ".csv";
+    for (int d = 0; d < 8; ++d)
+      files += " " + kDir + "pulse_" + onset + "_d" + std::to_string(d) + ".csv";
   }
   BOOST_TEST(run("regress force-pulse" + files + " -o " + out) == 0);
   const nlohmann::json j = read(out);
   BOOST_TEST(j.at("method") == "force-pulse");
   BOOST_TEST(j.at("estimates").size() == 2u);
   const nlohmann::json& e = j["estimates"][0];
-  for (const char* key : {"onset_s", "trials", "K_endpoint_n_per_m", "B_endpoint_ns_per_m",
-                          "M_endpoint_kg", "K_joint_nm_per_rad", "B_joint_nms_per_rad",
-                          "residual_rms"}) {
+  for (const char* key :
+       {"onset_s", "trials", "K_endpoint_n_per_m", "B_endpoint_ns_per_m", "M_endpoint_kg",
+        "K_joint_nm_per_rad", "B_joint_nms_per_rad", "residual_rms"}) {
     BOOST_TEST(e.contains(key), key);
   }
   BOOST_TEST(std::abs(e["K_endpoint_n_per_m"][0][0].get<double>() - 600.0) < 6.0);  // 1 %

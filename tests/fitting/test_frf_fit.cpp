@@ -2,8 +2,10 @@
 // Kelvin-Voigt and Poynting-Thomson systems written out in closed form here (complex algebra with
 // std::complex, independent of the fit's real-block solves), coherence gating, bad input, and the
 // chain `stiffid simulate` -> `stiffid frf` -> `stiffid fit --frf` against the simulator's truth.
-#include <boost/test/unit_test.hpp>
+#include <sys/wait.h>
+
 #include <Eigen/Dense>
+#include <boost/test/unit_test.hpp>
 #include <cmath>
 #include <complex>
 #include <cstdlib>
@@ -11,7 +13,6 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
-#include <sys/wait.h>
 
 #include "data/error.hpp"
 #include "fitting/frf_fit.hpp"
@@ -23,9 +24,9 @@ using cd = std::complex<double>;
 
 namespace {
 
-const Eigen::Matrix2d kI = (Eigen::Matrix2d() << 1.2, 0.1, 0.1, 0.9).finished();       // kg
-const Eigen::Matrix2d kC = (Eigen::Matrix2d() << 10.0, 1.0, 1.0, 7.0).finished();      // N s/m
-const Eigen::Matrix2d kK = (Eigen::Matrix2d() << 250.0, 40.0, 40.0, 180.0).finished(); // N/m
+const Eigen::Matrix2d kI = (Eigen::Matrix2d() << 1.2, 0.1, 0.1, 0.9).finished();        // kg
+const Eigen::Matrix2d kC = (Eigen::Matrix2d() << 10.0, 1.0, 1.0, 7.0).finished();       // N s/m
+const Eigen::Matrix2d kK = (Eigen::Matrix2d() << 250.0, 40.0, 40.0, 180.0).finished();  // N/m
 
 // Dynamic stiffness Z(i omega) in closed form; H = Z^-1.
 Eigen::Matrix2cd kv_stiffness(double w) {
@@ -45,19 +46,23 @@ fit::FrfTarget exact_target(Z stiffness, double f_lo, double f_hi, int count) {
   t.outputs = {"x", "y"};
   t.frequency_hz = Eigen::VectorXd::LinSpaced(count, f_lo, f_hi);
   t.coherence = Eigen::MatrixXd::Ones(count, 2);
-  for (int k = 0; k < count; ++k) t.compliance.push_back(stiffness(2 * M_PI * t.frequency_hz(k)).inverse());
+  for (int k = 0; k < count; ++k)
+    t.compliance.push_back(stiffness(2 * M_PI * t.frequency_hz(k)).inverse());
   return t;
 }
 
-double relative_error(const fit::LumpedFitResult& r, const std::string& name, const Eigen::Matrix2d& truth) {
+double relative_error(const fit::LumpedFitResult& r, const std::string& name,
+                      const Eigen::Matrix2d& truth) {
   for (const auto& m : r.parameters) {
-    if (m.name == name) return (m.value - truth).cwiseAbs().maxCoeff() / truth.cwiseAbs().maxCoeff();
+    if (m.name == name)
+      return (m.value - truth).cwiseAbs().maxCoeff() / truth.cwiseAbs().maxCoeff();
   }
   return INFINITY;
 }
 
 int run(const std::string& args) {
-  const int status = std::system((std::string(STIFFID_BINARY) + " " + args + " 2>/dev/null").c_str());
+  const int status =
+      std::system((std::string(STIFFID_BINARY) + " " + args + " 2>/dev/null").c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
@@ -116,7 +121,8 @@ BOOST_AUTO_TEST_CASE(bad_input_is_an_input_error) {
   BOOST_CHECK_THROW(fit::fit_frf(t, band), stiffid::InputError);
   const stiffid::test::TempFolder folder("frf_fit");
   const fs::path& dir = folder.path;
-  std::ofstream(dir / "bad.json") << R"({"inputs": ["fx"], "outputs": ["x"], "frequency_hz": [1, 2]})";
+  std::ofstream(dir / "bad.json")
+      << R"({"inputs": ["fx"], "outputs": ["x"], "frequency_hz": [1, 2]})";
   BOOST_CHECK_THROW(fit::read_frf_json((dir / "bad.json").string()), stiffid::InputError);
   BOOST_CHECK_THROW(fit::read_frf_json((dir / "missing.json").string()), stiffid::InputError);
 }
@@ -127,11 +133,13 @@ BOOST_AUTO_TEST_CASE(cli_chain_recovers_the_simulated_endpoint_model) {
   // bias (leakage) and the sampled-vs-continuous response: within 2 % of the truth.
   const stiffid::test::TempFolder folder("frf_cli");
   const fs::path& dir = folder.path;
-  const std::string spec = std::string(STIFFID_SOURCE_DIR) + "/models/specs/perreault_endpoint_c0.json";
+  const std::string spec =
+      std::string(STIFFID_SOURCE_DIR) + "/models/specs/perreault_endpoint_c0.json";
   const std::string trial = (dir / "trial.csv").string(), frf = (dir / "frf.json").string(),
                     out = (dir / "fit.json").string();
   BOOST_REQUIRE_EQUAL(run("simulate " + spec + " -o " + trial), 0);
-  BOOST_REQUIRE_EQUAL(run("frf " + trial + " --inputs fx,fy --outputs x,y --nfft 512 -o " + frf), 0);
+  BOOST_REQUIRE_EQUAL(run("frf " + trial + " --inputs fx,fy --outputs x,y --nfft 512 -o " + frf),
+                      0);
   BOOST_REQUIRE_EQUAL(run("fit kv --frf " + frf + " --band 0.2:12 -o " + out), 0);
   std::ifstream in(out);
   const nlohmann::json j = nlohmann::json::parse(in);

@@ -40,7 +40,10 @@ struct Case {
 };
 
 Case load(const std::string& name) {
-  Case c{stiffid::data::read_trial_csv(kDir + name + ".csv"), truth(name), {}, {},
+  Case c{stiffid::data::read_trial_csv(kDir + name + ".csv"),
+         truth(name),
+         {},
+         {},
          sf::parse_lumped_model(truth(name).at("model")),
          sf::parse_input_hold(truth(name).at("hold"))};
   const int dof = c.truth.at("dof");

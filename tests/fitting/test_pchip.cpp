@@ -6,8 +6,8 @@
 #include <nlohmann/json.hpp>
 
 #include "data/error.hpp"
-#include "fitting/pchip.hpp"
 #include "estimators/savitzky_golay.hpp"
+#include "fitting/pchip.hpp"
 
 namespace sf = stiffid::fitting;
 
@@ -52,7 +52,8 @@ BOOST_AUTO_TEST_CASE(pchip_is_monotone_on_monotone_data_and_exact_at_knots) {
   BOOST_TEST((p(x) - y).cwiseAbs().maxCoeff() < 1e-15);
   // one knot: constant; two knots: straight line
   BOOST_TEST(sf::Pchip(x.head(1), y.head(1))(t)(7) == 0.0);
-  BOOST_TEST(std::abs(sf::Pchip(x.head(2), y.head(2))(Eigen::VectorXd::Constant(1, 0.5))(0) - 0.05) < 1e-15);
+  BOOST_TEST(std::abs(sf::Pchip(x.head(2), y.head(2))(Eigen::VectorXd::Constant(1, 0.5))(0) -
+                      0.05) < 1e-15);
 }
 
 BOOST_AUTO_TEST_CASE(pchip_rejects_unsorted_knots) {
@@ -69,11 +70,13 @@ BOOST_AUTO_TEST_CASE(savitzky_golay_matches_scipy_interp_mode) {
   // window and spacing.
   const double dt = ref.at("dt");
   const int window = ref.at("window");
-  const auto r = stiffid::estimators::savitzky_golay(x, 1.0 / dt, {(window - 1) * dt, ref.at("order")});
+  const auto r =
+      stiffid::estimators::savitzky_golay(x, 1.0 / dt, {(window - 1) * dt, ref.at("order")});
   // least squares of an 11 x 5 Vandermonde: round-off ~1e-13 relative, scaled by 1/dt^k
   BOOST_TEST((r.value.col(0) - vec(ref.at("value"))).cwiseAbs().maxCoeff() < 1e-10);
   BOOST_TEST((r.first_derivative.col(0) - vec(ref.at("first"))).cwiseAbs().maxCoeff() < 1e-7);
   BOOST_TEST((r.second_derivative.col(0) - vec(ref.at("second"))).cwiseAbs().maxCoeff() < 1e-4);
   // order 6 on a 5-sample window has no least-squares polynomial
-  BOOST_CHECK_THROW(stiffid::estimators::savitzky_golay(x, 1.0 / dt, {4 * dt, 6}), stiffid::InputError);
+  BOOST_CHECK_THROW(stiffid::estimators::savitzky_golay(x, 1.0 / dt, {4 * dt, 6}),
+                    stiffid::InputError);
 }

@@ -109,10 +109,12 @@ BOOST_AUTO_TEST_CASE(given_onset_and_baseline_trial_give_the_same_estimate) {
   o.onset_s = 2.5;
   // an unperturbed trial: the first trial before its onset, held
   stiffid::data::Trial base = first[0];
-  for (Eigen::Index i = 0; i < base.samples.rows(); ++i) base.samples.row(i) = first[0].samples.row(0);
+  for (Eigen::Index i = 0; i < base.samples.rows(); ++i)
+    base.samples.row(i) = first[0].samples.row(0);
   const sf::RegressionResult a = sf::regress(first, nullptr, o);
   const sf::RegressionResult b = sf::regress(first, &base, o);
-  BOOST_TEST(relative(a.estimates[0].k_endpoint_n_per_m, b.estimates[0].k_endpoint_n_per_m) < 1e-12);
+  BOOST_TEST(relative(a.estimates[0].k_endpoint_n_per_m, b.estimates[0].k_endpoint_n_per_m) <
+             1e-12);
 }
 
 BOOST_AUTO_TEST_CASE(bad_input_gets_clear_errors) {

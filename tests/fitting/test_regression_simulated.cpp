@@ -74,8 +74,9 @@ double profile_error(const Run& r, int i, int j, bool damping) {
 }  // namespace
 
 BOOST_AUTO_TEST_CASE(sigmoid_stiffness_profiles_of_the_three_regressions) {
-  for (const auto method : {sf::RegressionMethod::force_pulse, sf::RegressionMethod::displacement_full,
-                            sf::RegressionMethod::displacement_steady_state}) {
+  for (const auto method :
+       {sf::RegressionMethod::force_pulse, sf::RegressionMethod::displacement_full,
+        sf::RegressionMethod::displacement_steady_state}) {
     const Run r = run(method);
     BOOST_REQUIRE_EQUAL(r.result.estimates.size(), 5u);
     std::ostringstream line;

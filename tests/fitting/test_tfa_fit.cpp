@@ -6,6 +6,7 @@
 
 #include <sys/wait.h>
 
+#include <Eigen/Eigenvalues>
 #include <boost/test/unit_test.hpp>
 #include <cmath>
 #include <cstdlib>
@@ -14,8 +15,6 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <random>
-
-#include <Eigen/Eigenvalues>
 
 #include "fitting/tfa_fit.hpp"
 #include "models/arm.hpp"
@@ -31,9 +30,9 @@ Eigen::MatrixXd m2(double a, double b, double c) {
   return (Eigen::MatrixXd(2, 2) << a, b, b, c).finished();
 }
 
-const Eigen::MatrixXd kM = m2(0.15, 0.027, 0.046);   // kg m^2
-const Eigen::MatrixXd kC = m2(0.35, 0.05, 0.2);      // N m s/rad
-const Eigen::MatrixXd kK = m2(35.0, 5.0, 20.0);      // N m/rad
+const Eigen::MatrixXd kM = m2(0.15, 0.027, 0.046);  // kg m^2
+const Eigen::MatrixXd kC = m2(0.35, 0.05, 0.2);     // N m s/rad
+const Eigen::MatrixXd kK = m2(35.0, 5.0, 20.0);     // N m/rad
 
 sf::TfaTarget constant_target(int frames) {
   sf::TfaTarget t;
@@ -103,8 +102,8 @@ BOOST_AUTO_TEST_CASE(invalid_out_of_interval_and_null_frames_are_left_out) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   t.stiffness_nm_per_rad[10] = m2(1e6, 0, 1e6);  // invalid frame
   t.valid[10] = false;
-  t.damping_nms_per_rad[20](0, 1) = nan;         // a null in one track
-  t.stiffness_nm_per_rad[95] = m2(-5, 0, 1);     // outside the interval
+  t.damping_nms_per_rad[20](0, 1) = nan;      // a null in one track
+  t.stiffness_nm_per_rad[95] = m2(-5, 0, 1);  // outside the interval
   sf::TfaFitOptions o;
   o.to_s = t.time_s(90);
   const sf::TfaFitResult r = sf::fit_tfa(t, o);
@@ -156,8 +155,7 @@ BOOST_AUTO_TEST_CASE(standard_errors_cover_the_truth_under_serially_correlated_n
     const sf::TfaFitResult r = sf::fit_tfa(t, {});
     const double error = parameter(r.fit, "K").value(0, 0) - kK(0, 0);
     const double se = parameter(r.fit, "K").std_error(0, 0);
-    const double naive =
-        std::sqrt((sum2 - sum * sum / frames) / (frames - 1) / frames);
+    const double naive = std::sqrt((sum2 - sum * sum / frames) / (frames - 1) / frames);
     covered += std::abs(error) <= 1.96 * se;
     covered_naive += std::abs(error) <= 1.96 * naive;
   }
@@ -313,8 +311,8 @@ BOOST_AUTO_TEST_CASE(cli_chain_recovers_the_simulated_posture) {
   // I: the arm's inertia at the posture (hand at (0.4, 0) m), eq 9; deviations of ~0.01 rad move
   // it by well under 1 %.
   const stiffid::models::ArmParameters arm;
-  const Eigen::Matrix2d m =
-      stiffid::models::inertia_matrix(arm, stiffid::models::inverse_kinematics(arm, {0.4, 0.0}, "hand"));
+  const Eigen::Matrix2d m = stiffid::models::inertia_matrix(
+      arm, stiffid::models::inverse_kinematics(arm, {0.4, 0.0}, "hand"));
   for (int r = 0; r < 2; ++r) {
     for (int c = 0; c < 2; ++c) BOOST_TEST(std::abs(value("I", r, c) / m(r, c) - 1.0) < 0.01);
   }
@@ -322,7 +320,8 @@ BOOST_AUTO_TEST_CASE(cli_chain_recovers_the_simulated_posture) {
   const std::string none = folder.file("none.json");
   BOOST_TEST(run("fit pt --tfa " + tfa + " -o " + none) == 2);
   BOOST_TEST(run("fit kv --tfa " + tfa + " --interval 3:2 -o " + none) == 2);
-  BOOST_TEST(run("fit kv " + trial + " --inputs fx,fy --outputs x,y --interval 1:2 -o " + none) == 2);
+  BOOST_TEST(run("fit kv " + trial + " --inputs fx,fy --outputs x,y --interval 1:2 -o " + none) ==
+             2);
   BOOST_TEST(!std::filesystem::exists(none));
 }
 
@@ -394,9 +393,8 @@ BOOST_AUTO_TEST_CASE(cli_chain_recovers_a_simulated_duffing_posture) {
   BOOST_TEST(message.find("chirped frame fits") != std::string::npos);
   const nlohmann::json jc = read_json(fit_chirp);
   const Eigen::Matrix2d kc = matrix(jc, "K"), bc = matrix(jc, "B");
-  BOOST_TEST_MESSAGE("Duffing fit on chirped tracks: K = [" << kc(0, 0) << " " << kc(0, 1) << "; "
-                                                           << kc(1, 1) << "] N m/rad, B = diag("
-                                                           << bc(0, 0) << ", " << bc(1, 1)
-                                                           << ") N m/rad^3");
+  BOOST_TEST_MESSAGE("Duffing fit on chirped tracks: K = ["
+                     << kc(0, 0) << " " << kc(0, 1) << "; " << kc(1, 1) << "] N m/rad, B = diag("
+                     << bc(0, 0) << ", " << bc(1, 1) << ") N m/rad^3");
   BOOST_TEST((kc - truth).norm() / truth.norm() < 0.05);
 }

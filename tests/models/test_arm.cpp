@@ -48,7 +48,8 @@ BOOST_AUTO_TEST_CASE(analytic_jacobian_matches_numeric_derivative_of_kinematics)
     const Eigen::Vector2d fd =
         (m::hand_position(arm, theta + d) - m::hand_position(arm, theta - d)) / (2 * kStep);
     BOOST_CHECK_SMALL((fd - j.col(i)).norm(), kFdTolerance);
-    const Eigen::Matrix2d dj_fd = (m::jacobian(arm, theta + d) - m::jacobian(arm, theta - d)) / (2 * kStep);
+    const Eigen::Matrix2d dj_fd =
+        (m::jacobian(arm, theta + d) - m::jacobian(arm, theta - d)) / (2 * kStep);
     BOOST_CHECK_SMALL((dj_fd - m::jacobian_d_theta(arm, theta, i)).norm(), kFdTolerance);
   }
   const Eigen::Matrix2d dm_fd = (m::inertia_matrix(arm, theta + Eigen::Vector2d(0, kStep)) -
@@ -85,7 +86,8 @@ BOOST_AUTO_TEST_CASE(load_stiffness_is_the_derivative_of_jacobian_transpose_time
     Eigen::Vector2d d = Eigen::Vector2d::Zero();
     d(i) = kStep;
     const Eigen::Vector2d fd = (m::jacobian(arm, theta + d).transpose() * f -
-                                m::jacobian(arm, theta - d).transpose() * f) / (2 * kStep);
+                                m::jacobian(arm, theta - d).transpose() * f) /
+                               (2 * kStep);
     BOOST_CHECK_SMALL((fd - omega.col(i)).norm(), kFdTolerance);
   }
 }

@@ -75,8 +75,8 @@ BOOST_AUTO_TEST_CASE(kelvin_voigt_1dof_free_decay_matches_closed_form) {
   double worst = 0.0;
   for (int s = 0; s < r.trial.sample_count(); ++s) {
     const double t = r.truth.time_s(s);
-    const double x = std::exp(-zeta * wn * t) *
-                     (x0 * std::cos(wd * t) + zeta * wn * x0 / wd * std::sin(wd * t));
+    const double x =
+        std::exp(-zeta * wn * t) * (x0 * std::cos(wd * t) + zeta * wn * x0 / wd * std::sin(wd * t));
     worst = std::max(worst, std::abs(r.trial.samples(s, r.trial.index("x")) - x));
   }
   // Local error per step <= 1e-10 m + 1e-9 * |x|; over ~1e3 steps the global error stays below
@@ -89,8 +89,8 @@ BOOST_AUTO_TEST_CASE(kelvin_voigt_1dof_free_decay_matches_closed_form) {
   double worst_exact = 0.0;
   for (int s = 0; s < e.trial.sample_count(); ++s) {
     const double t = e.truth.time_s(s);
-    const double x = std::exp(-zeta * wn * t) *
-                     (x0 * std::cos(wd * t) + zeta * wn * x0 / wd * std::sin(wd * t));
+    const double x =
+        std::exp(-zeta * wn * t) * (x0 * std::cos(wd * t) + zeta * wn * x0 / wd * std::sin(wd * t));
     worst_exact = std::max(worst_exact, std::abs(e.trial.samples(s, 1) - x));
   }
   // Round-off of 2000 products by a matrix exponential computed to ~1e-15: ~1e-14 relative.
@@ -161,9 +161,11 @@ BOOST_AUTO_TEST_CASE(undamped_free_arm_conserves_kinetic_energy) {
   };
   const double e0 = energy(0);
   double worst = 0.0;
-  for (int s = 0; s < r.trial.sample_count(); ++s) worst = std::max(worst, std::abs(energy(s) - e0));
+  for (int s = 0; s < r.trial.sample_count(); ++s)
+    worst = std::max(worst, std::abs(energy(s) - e0));
   // The arm moves (by ~1 rad): the check is not vacuous.
-  BOOST_CHECK_GT(std::abs(r.truth.position(r.trial.sample_count() - 1, 1) - r.truth.position(0, 1)), 0.1);
+  BOOST_CHECK_GT(std::abs(r.truth.position(r.trial.sample_count() - 1, 1) - r.truth.position(0, 1)),
+                 0.1);
   // Error control at 1e-12 relative per step over ~1e3 steps: relative drift well below 1e-8.
   BOOST_TEST_MESSAGE("kinetic energy drift " << worst / e0);
   BOOST_CHECK_LT(worst / e0, 1e-8);
@@ -197,10 +199,8 @@ BOOST_AUTO_TEST_CASE(feedforward_torque_drives_the_free_arm_along_eqs_50_51) {
   auto rhs = [&](const State& x, State& dx, double t) {
     const m::ReferencePoint ref = m::arm_reference(arm, task, 5.0, t);
     const Eigen::Vector2d th(x[0], x[1]), w(x[2], x[3]);
-    const Eigen::Vector2d acc = m::inertia_matrix(arm, th)
-                                    .llt()
-                                    .solve(m::feedforward_torque(arm, ref) -
-                                           m::coriolis_matrix(arm, th, w) * w);
+    const Eigen::Vector2d acc = m::inertia_matrix(arm, th).llt().solve(
+        m::feedforward_torque(arm, ref) - m::coriolis_matrix(arm, th, w) * w);
     dx = {w(0), w(1), acc(0), acc(1)};
   };
   const m::ReferencePoint r0 = m::arm_reference(arm, task, 5.0, 0.0);
@@ -267,7 +267,8 @@ BOOST_AUTO_TEST_CASE(butterworth_matches_scipy) {
     int order;
     double fc, fs;
     const char* column;
-  } cases[] = {{4, 9.0, 50.0, "y_4_9_50"}, {3, 100.0, 4000.0, "y_3_100_4000"},
+  } cases[] = {{4, 9.0, 50.0, "y_4_9_50"},
+               {3, 100.0, 4000.0, "y_3_100_4000"},
                {5, 20.0, 1000.0, "y_5_20_1000"}};
   for (const auto& c : cases) {
     const Eigen::VectorXd y = m::sos_filter(m::butterworth_lowpass_sos(c.order, c.fc, c.fs), x);
@@ -355,19 +356,18 @@ BOOST_AUTO_TEST_CASE(oversampled_random_forces_keep_the_analog_roll_off_above_th
     return sum / count;
   };
   const double expected = aliased(22.0, 25.0) / aliased(1.0, 5.0);
-  BOOST_TEST_MESSAGE("22-25 Hz / 1-5 Hz power: oversample 1 " << digital << ", oversample 10 "
-                                                               << analog << ", expected " << expected);
+  BOOST_TEST_MESSAGE("22-25 Hz / 1-5 Hz power: oversample 1 "
+                     << digital << ", oversample 10 " << analog << ", expected " << expected);
   BOOST_CHECK_LT(digital, 1e-6);
   // 120 segments x 31 bins: the band averages have a relative sd of ~2 %; 15 % is generous.
   BOOST_CHECK_CLOSE(analog, expected, 15.0);
 }
 
 BOOST_AUTO_TEST_CASE(same_seed_gives_identical_trials_on_any_thread) {
-  std::vector<m::TrialSpec> specs = {m::perreault_endpoint_trial(50.0, 10.0),
-                                     m::perreault_arm_trial(2),
-                                     m::piovesan_impulse_trial(m::TaskKind::reach,
-                                                               m::ProfileKind::sharp,
-                                                               m::ProfileKind::constant, 0.0)};
+  std::vector<m::TrialSpec> specs = {
+      m::perreault_endpoint_trial(50.0, 10.0), m::perreault_arm_trial(2),
+      m::piovesan_impulse_trial(m::TaskKind::reach, m::ProfileKind::sharp, m::ProfileKind::constant,
+                                0.0)};
   specs[1].duration_s = 10.0;
   specs[2].perturbations.pulses[0].random_octant = true;
   specs[2].noise.signal_dependent = true;

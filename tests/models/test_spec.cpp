@@ -36,7 +36,8 @@ BOOST_AUTO_TEST_CASE(a_valid_spec_parses_with_units_converted) {
   BOOST_CHECK_EQUAL(spec.joint.stiffness(0, 1), 5.0);
   // Round trip through trial_spec_to_json.
   const m::TrialSpec again = m::parse_trial_spec(m::trial_spec_to_json(spec), "again.json");
-  BOOST_CHECK_EQUAL(again.perturbations.pulses.at(0).direction_rad, spec.perturbations.pulses[0].direction_rad);
+  BOOST_CHECK_EQUAL(again.perturbations.pulses.at(0).direction_rad,
+                    spec.perturbations.pulses[0].direction_rad);
   BOOST_CHECK(again.joint.damping == spec.joint.damping);
 }
 
@@ -50,8 +51,11 @@ BOOST_AUTO_TEST_CASE(unknown_key_is_named) {
 BOOST_AUTO_TEST_CASE(wrong_unit_is_named) {
   json s = posture();
   s["viscoelasticity"].erase("stiffness_nm_per_rad");
-  s["viscoelasticity"]["stiffness_n_per_m"] = json::array({json::array({35, 5}), json::array({5, 20})});
-  BOOST_CHECK(mentions(error_of(s), "viscoelasticity.stiffness_n_per_m: wrong or unknown unit, expected stiffness_nm_per_rad"));
+  s["viscoelasticity"]["stiffness_n_per_m"] =
+      json::array({json::array({35, 5}), json::array({5, 20})});
+  BOOST_CHECK(mentions(
+      error_of(s),
+      "viscoelasticity.stiffness_n_per_m: wrong or unknown unit, expected stiffness_nm_per_rad"));
   json t = posture();
   t["duration_ms"] = 1000;
   BOOST_CHECK(mentions(error_of(t), "duration_ms: wrong or unknown unit, expected duration_s"));
@@ -66,8 +70,10 @@ BOOST_AUTO_TEST_CASE(impossible_values_are_named) {
   BOOST_CHECK(mentions(error_of(reach), "task.hand_m"));
   BOOST_CHECK(mentions(error_of(reach), "out of reach"));
   json stiff = posture();
-  stiff["viscoelasticity"]["stiffness_nm_per_rad"] = json::array({json::array({1, 5}), json::array({5, 1})});
-  BOOST_CHECK(mentions(error_of(stiff), "viscoelasticity.stiffness_nm_per_rad: expected a positive definite"));
+  stiff["viscoelasticity"]["stiffness_nm_per_rad"] =
+      json::array({json::array({1, 5}), json::array({5, 1})});
+  BOOST_CHECK(mentions(error_of(stiff),
+                       "viscoelasticity.stiffness_nm_per_rad: expected a positive definite"));
   json inertia = json::parse(R"({"model": "endpoint", "duration_s": 1, "sample_rate_hz": 50,
     "endpoint": {"inertia_kg": [[1, 2], [2, 1]]}})");
   BOOST_CHECK(mentions(error_of(inertia), "endpoint.inertia_kg: expected a positive definite"));
@@ -81,7 +87,8 @@ BOOST_AUTO_TEST_CASE(impossible_values_are_named) {
 
 BOOST_AUTO_TEST_CASE(shipped_example_specs_parse) {
   int count = 0;
-  for (const auto& entry : std::filesystem::directory_iterator(STIFFID_SOURCE_DIR "/models/specs")) {
+  for (const auto& entry :
+       std::filesystem::directory_iterator(STIFFID_SOURCE_DIR "/models/specs")) {
     BOOST_CHECK_NO_THROW(m::read_trial_spec(entry.path().string()));
     ++count;
   }

@@ -10,9 +10,9 @@
 
 #include "data/csv.hpp"
 #include "data/error.hpp"
+#include "tests/support/support.hpp"
 #include "validation/anova.hpp"
 #include "validation/anova_report.hpp"
-#include "tests/support/support.hpp"
 
 namespace v = stiffid::validation;
 namespace d = stiffid::data;

@@ -66,8 +66,7 @@ BOOST_AUTO_TEST_CASE(rms_error_percent_over_an_interval_uses_only_its_samples) {
     estimate(i) = time(i) < 0.5 ? 2.0 : 2.0;  // wrong by 100 % on the first half only
   }
   BOOST_CHECK_SMALL(v::rms_error_percent(time, estimate, truth, 0.5, 1.0), 1e-12);
-  BOOST_CHECK_CLOSE(v::rms_error_percent(time, estimate, truth, 0.0, 0.4), 100.0,
-                    kRoundOffPercent);
+  BOOST_CHECK_CLOSE(v::rms_error_percent(time, estimate, truth, 0.0, 0.4), 100.0, kRoundOffPercent);
   BOOST_CHECK_THROW(v::rms_error_percent(time, estimate, truth, 2.0, 3.0), stiffid::InputError);
 }
 

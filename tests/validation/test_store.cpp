@@ -7,8 +7,8 @@
 #include <limits>
 
 #include "data/error.hpp"
-#include "validation/store.hpp"
 #include "tests/support/support.hpp"
+#include "validation/store.hpp"
 
 namespace v = stiffid::validation;
 namespace fs = std::filesystem;
@@ -112,9 +112,9 @@ BOOST_AUTO_TEST_CASE(resuming_checks_the_spec_hash_and_creating_replaces) {
   }
   v::ResultStore fresh(path, v::ResultStore::Mode::create, header());
   BOOST_CHECK(fresh.stored_cells().empty());
-  BOOST_CHECK_THROW(v::ResultStore(folder.file("missing.sqlite"),
-                                   v::ResultStore::Mode::open_existing, header()),
-                    stiffid::InputError);
+  BOOST_CHECK_THROW(
+      v::ResultStore(folder.file("missing.sqlite"), v::ResultStore::Mode::open_existing, header()),
+      stiffid::InputError);
 }
 
 BOOST_AUTO_TEST_CASE(merge_copies_missing_cells_and_keeps_present_ones) {

@@ -7,14 +7,14 @@
 #include <sstream>
 
 #include "data/error.hpp"
+#include "tests/support/support.hpp"
 #include "validation/progress.hpp"
 #include "validation/study.hpp"
-#include "tests/support/support.hpp"
 
 namespace v = stiffid::validation;
 namespace fs = std::filesystem;
-using stiffid::test::TempFolder;
 using stiffid::test::read_text;
+using stiffid::test::TempFolder;
 
 namespace {
 
@@ -57,8 +57,7 @@ std::string error_of(const std::string& text) {
 BOOST_AUTO_TEST_CASE(cell_seeds_match_an_independent_implementation_of_the_documented_hash) {
   // tests/data/study/make_seeds.py computes FNV-1a + SplitMix64 in Python from the rule in
   // study_spec.hpp; equality is exact (integers).
-  const auto cases =
-      nlohmann::json::parse(read_text(STIFFID_TEST_DATA_DIR "/study/seeds.json"));
+  const auto cases = nlohmann::json::parse(read_text(STIFFID_TEST_DATA_DIR "/study/seeds.json"));
   BOOST_REQUIRE_EQUAL(cases.size(), 4u);
   for (const auto& c : cases) {
     const std::uint64_t seed =
@@ -98,8 +97,7 @@ BOOST_AUTO_TEST_CASE(templates_are_filled_with_typed_levels_and_text) {
 
 BOOST_AUTO_TEST_CASE(spec_errors_name_the_place) {
   BOOST_CHECK(error_of("{\"name\": \"x\",\n  \"seed\": }").find("s.json:2:") == 0);
-  BOOST_CHECK(error_of(R"({"name": "x", "designz": []})").find("'designz'") !=
-              std::string::npos);
+  BOOST_CHECK(error_of(R"({"name": "x", "designz": []})").find("'designz'") != std::string::npos);
   BOOST_CHECK(error_of(R"({"name": "x", "seed": -1, "designs": [{"name": "d",
       "evaluator": "e"}]})")
                   .find("'seed'") != std::string::npos);
@@ -150,9 +148,8 @@ BOOST_AUTO_TEST_CASE(resume_computes_only_missing_cells_and_changes_nothing_stor
       r.replicate = cells[i].replicate;
       r.seed = cells[i].seed;
       r.started_utc = r.finished_utc = "then";
-      const auto outcome = v::synthetic_evaluator(v::fill_template(spec.designs[cells[i].design],
-                                                                   cells[i]),
-                                                  cells[i].seed);
+      const auto outcome = v::synthetic_evaluator(
+          v::fill_template(spec.designs[cells[i].design], cells[i]), cells[i].seed);
       r.metrics = outcome.metrics;
       if (i == 20) r.metrics = {{"sample_sd", outcome.metrics.at("sample_sd")}};
       partial.write_cell(r);

@@ -14,11 +14,12 @@
 #include <iostream>
 #include <sstream>
 #include <thread>
+
 #include "tests/support/support.hpp"
 
 namespace fs = std::filesystem;
-using stiffid::test::TempFolder;
 using stiffid::test::read_text;
+using stiffid::test::TempFolder;
 
 namespace {
 
@@ -66,10 +67,10 @@ BOOST_AUTO_TEST_CASE(killed_study_resumes_to_the_same_table_without_duplicates) 
   const std::string spec = folder.file("slow.json");
   write_text(spec, slow_spec(60));
   const std::string binary = STIFFID_BINARY;
-  BOOST_REQUIRE_EQUAL(run(binary + " study " + spec + " --threads 2 --store " +
-                          folder.file("full.sqlite") + " --csv " + folder.file("full.csv") +
-                          " > " + folder.file("full.out")),
-                      0);
+  BOOST_REQUIRE_EQUAL(
+      run(binary + " study " + spec + " --threads 2 --store " + folder.file("full.sqlite") +
+          " --csv " + folder.file("full.csv") + " > " + folder.file("full.out")),
+      0);
 
   const std::string store = folder.file("killed.sqlite");
   const pid_t child = fork();
@@ -127,9 +128,9 @@ BOOST_AUTO_TEST_CASE(exit_codes_follow_the_error_tiers) {
                     2);
   write_text(folder.file("fail.json"), R"({"name": "fail", "designs": [{"name": "d",
     "evaluator": "synthetic", "template": {"fail": true}}]})");
-  BOOST_CHECK_EQUAL(run(binary + " study " + folder.file("fail.json") + " --store " +
-                        folder.file("fail.sqlite") + " --csv " + folder.file("fail.csv") +
-                        " 2> /dev/null > /dev/null"),
-                    1);
+  BOOST_CHECK_EQUAL(
+      run(binary + " study " + folder.file("fail.json") + " --store " + folder.file("fail.sqlite") +
+          " --csv " + folder.file("fail.csv") + " 2> /dev/null > /dev/null"),
+      1);
   BOOST_CHECK(fs::exists(folder.file("fail.csv")));  // the table of what succeeded is written
 }

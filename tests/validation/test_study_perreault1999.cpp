@@ -9,8 +9,8 @@
 
 #include "data/error.hpp"
 #include "models/arm.hpp"
-#include "validation/perreault1999.hpp"
 #include "tests/support/support.hpp"
+#include "validation/perreault1999.hpp"
 
 namespace v = stiffid::validation;
 namespace fs = std::filesystem;
@@ -147,12 +147,12 @@ BOOST_AUTO_TEST_CASE(report_puts_the_paper_values_beside_ours) {
   const double level0[] = {99.9, 99.8, 99.8, 99.8, 99.8};
   const double level25[] = {99.9, 97.6, 99.8, 99.7, 99.7};
   for (int m = 0; m < 5; ++m) {
-    rows.push_back({0, "table1_coupling", R"({"coupling_percent":0})", 0, 1, metrics[m],
-                    level0[m]});
+    rows.push_back(
+        {0, "table1_coupling", R"({"coupling_percent":0})", 0, 1, metrics[m], level0[m]});
   }
   for (int m = 0; m < 5; ++m) {
-    rows.push_back({1, "table1_coupling", R"({"coupling_percent":25})", 0, 2, metrics[m],
-                    level25[m]});
+    rows.push_back(
+        {1, "table1_coupling", R"({"coupling_percent":25})", 0, 2, metrics[m], level25[m]});
   }
   v::StudySpec spec = v::load_study("perreault1999");
   const stiffid::test::TempFolder folder("report");
