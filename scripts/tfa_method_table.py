@@ -5,7 +5,7 @@
                               [--directions 0,45,90,135] [--profiles constant,sigmoid,sharp]
                               [--methods modal,spectrogram]
                               [--specs [NAME=]SPEC.json,...] [--summary] [-o TABLE.md]
-                              [--intervals 2.6-3.175,2.6-4.5]
+                              [--intervals 2.6-3.175,2.6-4.5] [--valid-only]
 
 For every profile (Piovesan's posture specs in models/specs/) or every spec file given with
 --specs (named NAME, or the file name without "piovesan_posture_" and ".json"), impulse direction,
@@ -14,7 +14,8 @@ impulse, turned to the direction, the given noise seed), `stiffid tfa --method m
 spectrogram` (default options otherwise), and the percentage RMS error 100 RMS(est - true) /
 RMS(true) of k11, k12, k22, c11, c12, c22 over 2.6-3.175 s and 2.6-4.5 s (--intervals: others,
 e.g. 2.5-5,2.6-3.175,2.6-4.5 for issue 6's three) against the simulator's
-truth (all frames, valid or not), with the share of frames the modal method flags K_valid, and
+truth (all frames, valid or not; with --valid-only the K and C errors over the frames the method
+vouches for, defined below, instead), with the share of frames the modal method flags K_valid, and
 the blow-up ratios max |k_ij(t)| / max |k_true_ij(t)| (and the same for C) over the frames in
 2.6-4.5 s (1 when every frame stays within the truth's range) and the share of those frames whose
 largest |k_ij| exceeds 2 x the truth's largest at that frame ("blown"), and the share of the
@@ -43,6 +44,7 @@ COEFFICIENTS = [("k11", "K", 0, 0), ("k12", "K", 0, 1), ("k22", "K", 1, 1),
                 ("c11", "C", 0, 0), ("c12", "C", 0, 1), ("c22", "C", 1, 1)]
 INTERVALS = [(2.6, 3.175), (2.6, 4.5)]
 TARGETS = [10.0, 10.0, 25.0]  # k11, k22, k12 % over 2.6-4.5 s (--targets)
+VALID_ONLY = False  # errors over the frames the method vouches for only (--valid-only)
 BLOWUP = 2.0  # a frame whose largest |K| (|C|) entry exceeds 2 x the truth's is blown up
 
 
@@ -60,19 +62,21 @@ def errors(tfa, truth):
            "C": np.array(tfa["C_nms_per_rad"], dtype=float)}
     true = {"K": np.array(truth["stiffness_nm_per_rad"]),
             "C": np.array(truth["damping_nms_per_rad"])}
+    # Frames the method vouches for: K_valid (modal), or every mode valid (spectrogram).
+    k_valid = (np.array(tfa["K_valid"], dtype=bool) if "K_valid" in tfa
+               else np.all(np.array(tfa["valid"], dtype=bool), axis=0))
     out = {}
     for lo, hi in INTERVALS + [(2.6, 4.5)]:  # 2.6-4.5 s always: the targets are over it
         m = (t >= lo) & (t <= hi)
+        if VALID_ONLY:
+            m &= k_valid
         for name, which, r, c in COEFFICIENTS:
             ref = np.interp(t[m], tt, true[which][:, r, c])
             e = est[which][r][c][m]
             bad = ~np.isfinite(e)
-            value = rms_error(e, ref) if not bad.any() else np.inf
+            value = (np.nan if not m.any() else rms_error(e, ref) if not bad.any() else np.inf)
             out[(lo, hi, name)] = value
     m = (t >= 2.6) & (t <= 4.5)
-    # Frames the method vouches for: K_valid (modal), or every mode valid (spectrogram).
-    k_valid = (np.array(tfa["K_valid"], dtype=bool) if "K_valid" in tfa
-               else np.all(np.array(tfa["valid"], dtype=bool), axis=0))
     out["valid"] = 100.0 * np.mean(k_valid[m])
     # Blow-ups: the largest estimated entry of any frame against the largest true entry, and the
     # share of frames whose largest entry exceeds BLOWUP x the largest true entry at that frame.
@@ -124,9 +128,12 @@ def main():
                    help="k11,k22,k12 limits in %% over 2.6-4.5 s for the runs-meeting count")
     p.add_argument("--intervals", default="2.6-3.175,2.6-4.5",
                    help="error intervals LO-HI in s, comma-separated")
+    p.add_argument("--valid-only", action="store_true",
+                   help="K and C errors over the frames the method vouches for only")
     p.add_argument("-o", "--output", default="")
     a = p.parse_args()
-    global TARGETS, INTERVALS
+    global TARGETS, INTERVALS, VALID_ONLY
+    VALID_ONLY = a.valid_only
     try:
         INTERVALS = [tuple(float(v) for v in item.split("-")) for item in a.intervals.split(",")]
     except ValueError:
