@@ -435,8 +435,9 @@ void add_tfa_command(CLI::App& app) {
                   "record; docs/tfa_modal.md, \"Local roughness\")")
       ->capture_default_str();
   sub->add_option("--lost-track-time-s", o.modes.lost_track_time_s,
-                  "modal: after the last time a mode is valid (it sank into the noise), its "
-                  "frequency and decay tracks go on from there with their slopes decaying with "
+                  "modal: after the last time a mode's ANR is at or above the threshold (it "
+                  "sank into the noise), its frequency and decay tracks go on from there with "
+                  "their slopes decaying with "
                   "this time constant, s (0: held constant; < 0: the splines' straight-line "
                   "extrapolation); those times stay invalid (docs/tfa_modal.md, \"Lost modes\")")
       ->capture_default_str();

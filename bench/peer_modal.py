@@ -38,8 +38,8 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     effective dof from the trace of their penalized smoother), is lower and its frequency tracks
     do not cross;
     posterior SDs from s^2 (J^T J)^+; ANR; validity flags, including the mode-to-data power and
-    separation checks (damped_modes.cpp); after a mode's last valid sample its tracks go on as a
-    damped trend (lost_track_time_s);
+    separation checks (damped_modes.cpp); after the last sample at which a mode's ANR is at or
+    above the threshold its tracks go on as a damped trend (lost_track_time_s);
   - eqs 45-46 and the eq-48 mapping to K(t), C(t), P(t) (eq 43 weighted by the modes' ANR
     power), a lost mode's column of P completed from the valid ones (modal_parameters.cpp), the
     per-time modal quantities and eq 49's normalized force (tfa.cpp, normalized_force.cpp);
@@ -865,16 +865,16 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
 
 
 def continue_lost_tracks(t_s, time_s, anr_threshold_db, tracks):
-    """After the last valid sample of a mode that sank into the noise (ANR never above its value
-    there, below the threshold at the end), omega and alpha (and their slopes) go on as a damped
-    trend (time constant time_s; 0: held); envelope, phase and ANR stay the fitted model's."""
+    """After the last sample at which a mode's ANR is at or above the threshold (every later one
+    below it: sunk into the noise; the mode valid somewhere before), omega and alpha (and their
+    slopes) go on as a damped trend (time constant time_s; 0: held); envelope, phase and ANR stay
+    the fitted model's."""
     for mt in tracks:
-        valid = np.nonzero(mt["valid"])[0]
-        if valid.size == 0 or valid[-1] == t_s.size - 1:
+        above = np.nonzero(mt["anr_db"] >= anr_threshold_db)[0]
+        if above.size == 0 or above[-1] == t_s.size - 1:
             continue
-        last = valid[-1]
-        anr = mt["anr_db"]
-        if not (anr[-1] < anr_threshold_db and np.all(anr[last + 1:] <= anr[last])):
+        last = above[-1]
+        if not np.any(mt["valid"][:last + 1]):
             continue
         s = t_s[last + 1:] - t_s[last]
         decay = np.exp(-s / time_s) if time_s > 0 else np.zeros_like(s)

@@ -83,15 +83,14 @@ struct DampedModesOptions {
                                       ///< dimensionless; 0: one roughness for the whole
                                       ///< record; docs/tfa_modal.md, "Local roughness")
   double lost_track_time_s = 0.3;     ///< design whole: a mode that sank into the noise
-                                      ///< (after its last valid sample its ANR never rises
-                                      ///< above its value there and ends below
-                                      ///< anr_threshold_db) has tracks the data no longer
-                                   ///< determine there; omega_j and alpha_j are continued from its
-                                   ///< last valid sample with their slopes decaying with
-                                   ///< this time constant, s (a damped trend; 0: held
-                                   ///< constant; < 0: the splines' own straight-line
-                                   ///< extrapolation). Those samples stay invalid
-                                   ///< (docs/tfa_modal.md, "Lost modes")
+                                      ///< (its ANR below anr_threshold_db from some sample to
+                                      ///< the end) has tracks the data no longer determine
+                                      ///< there; omega_j and alpha_j are continued from its
+                                      ///< last sample at or above the threshold with their
+                                      ///< slopes decaying with this time constant, s (a damped
+                                      ///< trend; 0: held constant; < 0: the splines' own
+                                      ///< straight-line extrapolation). Those samples stay
+                                      ///< invalid (docs/tfa_modal.md, "Lost modes")
   double decay_tie = 0.0;             ///< soft tie of the decay tracks, alpha_j(t) = rho_j
                                       ///< alpha_1(t) with rho_j fitted: prior SD of the
                                       ///< difference, relative to mode j's mean decay

@@ -713,11 +713,16 @@ BOOST_AUTO_TEST_CASE(a_step_in_the_tracks_gets_a_local_roughness_and_the_rest_st
   }
 }
 
+// A frequency-SD limit that flags the weak mode of sinking_while_rising_modes() well before its
+// ANR sinks below the threshold (the default 0.1 Hz flags it at the same sample), Hz.
+constexpr double kStrictSdHz = 0.02;
+
 BOOST_AUTO_TEST_CASE(a_lost_modes_tracks_go_on_as_a_damped_trend_not_a_straight_line) {
-  // After the last sample at which the weak mode is valid, the data no longer determine its
-  // tracks. The splines' prior would continue them in a straight line without bound; they are
-  // continued as a damped trend (lost_track_time_s), held with 0, and stay flagged. Only a mode
-  // that sank below the ANR threshold is continued.
+  // Once the weak mode has sunk below the ANR threshold for good, the data no longer determine
+  // its tracks. The splines' prior would continue them in a straight line without bound; from
+  // its last sample at or above the threshold they are continued as a damped trend
+  // (lost_track_time_s), held with 0, and stay flagged. Only a mode that sank below the ANR
+  // threshold is continued.
   const std::vector<ClosedFormMode> modes = sinking_while_rising_modes();
   auto fit = [&](double time_s, double anr_threshold_db = DampedModesOptions{}.anr_threshold_db) {
     DampedModesOptions o;
@@ -727,18 +732,23 @@ BOOST_AUTO_TEST_CASE(a_lost_modes_tracks_go_on_as_a_damped_trend_not_a_straight_
   };
   const DampedModesResult line = fit(-1.0), held = fit(0.0), trend = fit(0.3);
   const auto& weak = trend.modes[1];
-  Eigen::Index last = weak.valid.size() - 1;
-  while (last >= 0 && !weak.valid(last)) --last;
+  const double threshold_db = DampedModesOptions{}.anr_threshold_db;
+  Eigen::Index last = weak.valid.size() - 1, last_valid = last;
+  while (last >= 0 && !(weak.anr_db(last) >= threshold_db)) --last;
+  while (last_valid >= 0 && !weak.valid(last_valid)) --last_valid;
   BOOST_REQUIRE(last > 0);
+  BOOST_REQUIRE(last_valid > 0 && last_valid <= last);
   const double lost_s = trend.t_s(last);
-  BOOST_TEST_MESSAGE("weak mode last valid at " << lost_s << " s (" << lost_s - kFreeS
-                                                << " s into the response)");
+  BOOST_TEST_MESSAGE("weak mode last valid at "
+                     << trend.t_s(last_valid) << " s, last at or above the ANR threshold at "
+                     << lost_s << " s (" << lost_s - kFreeS << " s into the response)");
   BOOST_REQUIRE(lost_s < kFreeS + 1.0);  // lost while the sigmoid still rises
   const double f0 = weak.frequency_hz(last), slope = weak.omega_dot_rad_per_s2(last) / (2 * M_PI);
   double line_error = 0.0, trend_error = 0.0;
   int lost = 0;
   for (Eigen::Index i = 0; i < trend.t_s.size(); ++i) {
-    // Up to the last valid sample the continuation changes nothing.
+    // Up to the last sample above the threshold the continuation changes nothing (samples the
+    // frequency-SD test flagged before it keep the splines' tracks).
     if (i <= last) {
       BOOST_CHECK_EQUAL(trend.modes[1].frequency_hz(i), line.modes[1].frequency_hz(i));
       BOOST_CHECK_EQUAL(trend.modes[1].alpha_per_s(i), line.modes[1].alpha_per_s(i));
@@ -746,7 +756,7 @@ BOOST_AUTO_TEST_CASE(a_lost_modes_tracks_go_on_as_a_damped_trend_not_a_straight_
     }
     ++lost;
     BOOST_CHECK(!weak.valid(i) && !held.modes[1].valid(i) && !line.modes[1].valid(i));
-    // Held: the last valid value, slopes zero.
+    // Held: the value at the last sample above the threshold, slopes zero.
     BOOST_CHECK_EQUAL(held.modes[1].frequency_hz(i), held.modes[1].frequency_hz(last));
     BOOST_CHECK_EQUAL(held.modes[1].alpha_per_s(i), held.modes[1].alpha_per_s(last));
     BOOST_CHECK_EQUAL(held.modes[1].omega_dot_rad_per_s2(i), 0.0);
@@ -766,6 +776,27 @@ BOOST_AUTO_TEST_CASE(a_lost_modes_tracks_go_on_as_a_damped_trend_not_a_straight_
   // The strong mode is never lost: unchanged.
   BOOST_CHECK(trend.modes[0].frequency_hz == line.modes[0].frequency_hz);
   BOOST_CHECK_LT(trend_error, line_error);
+  // A mode the frequency-SD test flags before its ANR sinks below the threshold (here with a
+  // stricter SD limit) keeps the splines' tracks down to its last sample at or above the
+  // threshold, and the trend starts there, not at its last valid sample.
+  DampedModesOptions strict_options;
+  strict_options.max_frequency_sd_hz = kStrictSdHz;
+  const DampedModesResult strict = fit_noisy(modes, 20.0, 5, strict_options);
+  strict_options.lost_track_time_s = -1.0;
+  const DampedModesResult strict_line = fit_noisy(modes, 20.0, 5, strict_options);
+  const auto& sw = strict.modes[1];
+  Eigen::Index s_last = sw.valid.size() - 1, s_valid = s_last;
+  while (s_last >= 0 && !(sw.anr_db(s_last) >= threshold_db)) --s_last;
+  while (s_valid >= 0 && !sw.valid(s_valid)) --s_valid;
+  BOOST_TEST_MESSAGE("strict SD: last valid at " << strict.t_s(s_valid) << " s, last above the "
+                                                 << "threshold at " << strict.t_s(s_last) << " s");
+  BOOST_REQUIRE(s_valid > 0 && s_valid + 10 < s_last && s_last + 1 < sw.valid.size());
+  for (Eigen::Index i = 0; i <= s_last; ++i)
+    BOOST_CHECK_EQUAL(sw.frequency_hz(i), strict_line.modes[1].frequency_hz(i));
+  for (Eigen::Index i = s_last + 1; i < sw.valid.size(); ++i) {
+    const double decay = std::exp(-(strict.t_s(i) - strict.t_s(s_last)) / 0.3);
+    BOOST_CHECK_CLOSE(sw.omega_dot_rad_per_s2(i), sw.omega_dot_rad_per_s2(s_last) * decay, 1e-9);
+  }
   // A mode flagged while its ANR has not sunk below the threshold (here -300 dB: only the
   // frequency-SD test flags it) keeps the splines' tracks.
   const DampedModesResult kept = fit(0.3, -300.0), kept_line = fit(-1.0, -300.0);
