@@ -18,7 +18,9 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
     fit and kept by the BIC rule (the arm's quadratic distortion);
   - variable projection with Kaufman's Jacobian, minimized by Levenberg-Marquardt, along the
     roughness continuation 0.003 .. 3 with the BIC rule, from its third candidate on each
-    candidate also fitted from the start tracks and the lower cost kept;
+    candidate also fitted from the start tracks and the lower cost kept; a candidate with fewer
+    modes than it claims (tracks merged, modes cancelling, second-order terms outweighing their
+    mode) is skipped, the next roughness starting from its tracks;
   - after the tie, the local roughness (continuation rougher than the smoothest): a Student-t (nu 1)
     on each knot's second differences of all tracks, fitted by EM, its scale along the grid
     below the continuation's roughness, taken by the BIC rule with one parameter per bent knot;
@@ -88,6 +90,9 @@ OPTIONS = dict(decimate_hz=200.0, skip_s=0.025, noise_window_s=1.0, knot_spacing
 PRE_ONSET_S, PULSE_S = 0.2, 0.02
 ROUGHNESS_GRID = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 TIE_GRID = (0.3, 0.1, 0.03, 0.01, 0.003)
+# A fit whose modes' energies sum to over this many times the energy of their sum has
+# cancelling modes (kMaxCancellation, estimators/damped_modes.cpp).
+MAX_CANCELLATION = 4.0
 
 
 def lround(x):
@@ -283,6 +288,20 @@ class VpProblem:
         self.rr = prior.shape[0]
         self.residuals = self.rd + self.rp + self.rr + self.tied * self.m
         self._key = None
+
+    def part_energies(self, theta):
+        """Whitened energies over the record at theta: of each mode's part of the model, of their
+        sum and of the second-order terms' part (0 without them); None when theta overflows."""
+        if not self.evaluate(theta):
+            return None
+        a, _ = self.design(self.e)
+        terms = a[:, :self.nt] * self.beta[:self.nt]
+        parts = (terms[:, 0::2] + terms[:, 1::2]) @ self.mode_onehot  # (N C x modes)
+        distortion = 0.0
+        if self.so_mode >= 0:
+            cols = slice(self.first_so, self.first_so + 3 * self.c)
+            distortion = float(np.sum((a[:, cols] @ self.beta[cols]) ** 2))
+        return np.sum(parts ** 2, axis=0), float(np.sum(parts.sum(axis=1) ** 2)), distortion
 
     def function_columns(self, mode):
         """Time-function columns of mode's terms."""
@@ -568,20 +587,31 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
         """omega_j(tau) of every mode at theta `at` (samples x modes), rad/s."""
         return track_values @ at[:2 * modes * m].reshape(modes, 2, m)[:, 1, :].T
 
-    def merged(at):
-        """Two modes whose frequency tracks agree within min_mode_separation everywhere: one
-        mode counted twice (damped_modes.cpp)."""
+    def spurious(problem, at):
+        """A fit with fewer modes than it claims (damped_modes.cpp, `spurious`): two frequency
+        tracks within min_mode_separation everywhere, modes whose parts cancel (their energies
+        over MAX_CANCELLATION times that of their sum), or second-order terms whose part
+        outweighs the mode that carries them."""
         omega = frequency_tracks(at)
-        return any(np.max(np.abs(omega[:, j] - omega[:, k])
-                          / (0.5 * (np.abs(omega[:, j]) + np.abs(omega[:, k]))))
-                   < o["min_mode_separation"]
-                   for j in range(modes) for k in range(j + 1, modes))
+        if any(np.max(np.abs(omega[:, j] - omega[:, k])
+                      / (0.5 * (np.abs(omega[:, j]) + np.abs(omega[:, k]))))
+               < o["min_mode_separation"]
+               for j in range(modes) for k in range(j + 1, modes)):
+            return True
+        energy = problem.part_energies(at)
+        if energy is None:
+            return True
+        parts, total, distortion = energy
+        if parts.sum() > MAX_CANCELLATION * total:
+            return True
+        return problem.so_mode >= 0 and distortion >= parts[problem.so_mode]
 
-    def take_fit(problem, candidate, usable, conv, with_dof, merged_fit, accept):
-        """Takes a usable, unmerged fit (fit) when, once one has been taken, accept(rss, dof,
-        price) says so, price = ln(N) s^2 (s^2 the residual's own variance, never below 1)."""
+    def take_fit(problem, candidate, usable, conv, with_dof, spurious_fit, accept):
+        """Takes a usable fit that is not spurious (fit) when, once one has been taken,
+        accept(rss, dof, price) says so, price = ln(N) s^2 (s^2 the residual's own variance, never
+        below 1)."""
         size = fit_size(problem, candidate, with_dof) if usable else None
-        if size is None or merged_fit:
+        if size is None or spurious_fit:
             return False
         rss, dof = size
         rows = problem.rd
@@ -591,33 +621,36 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
         fit.update(problem=problem, theta=candidate, converged=conv, rss=rss, dof=dof)
         return True
 
+    skipped = [None]  # the last candidate refused as spurious (its tracks), else None
+
     def try_candidate(roughness, tie, with_dof, start, accept, restart=False):
         """Fits one candidate from start (with restart, also from the start tracks, the lower
         cost kept); taken (fit) when accept(rss, dof, price) says so; False when it is not
-        usable or not taken."""
+        usable, spurious (a usable one goes to skipped[0]) or not taken."""
         problem = VpProblem(p, modes, ig, design["functions"], design["terms"], design["pairs"],
                             design["weight"], prior_rows(track, modes, roughness), tie, so[0])
         candidate, usable, conv, nfev = solve(problem, start, o["max_iterations"])
         res["iterations"] += nfev
-        check = fit["problem"] is not None  # merged fits are refused once one has been taken
+        check = fit["problem"] is not None  # spurious fits are refused once one has been taken
 
-        def is_merged(ok, at):
-            return check and ok and merged(at)
+        def is_spurious(ok, at):
+            return check and ok and spurious(problem, at)
 
-        candidate_merged = is_merged(usable, candidate)
+        candidate_spurious = is_spurious(usable, candidate)
         other_start = start.size == cold.size and not np.array_equal(start, cold)
-        if other_start and (restart or candidate_merged):
+        if other_start and (restart or candidate_spurious):
             other, usable2, conv2, nfev2 = solve(problem, cold, o["max_iterations"])
             res["iterations"] += nfev2
-            other_merged = is_merged(usable2, other)
-            # The start tracks' fit replaces a fit that is not usable, or merged while it is not,
-            # or (equally merged) of higher cost.
+            other_spurious = is_spurious(usable2, other)
+            # The start tracks' fit replaces a fit that is not usable, or spurious while it is
+            # not, or (equally spurious) of higher cost.
             if usable2 and (not usable
-                            or (candidate_merged if candidate_merged != other_merged
+                            or (candidate_spurious if candidate_spurious != other_spurious
                                 else cost(problem, other) < cost(problem, candidate))):
                 candidate, usable, conv = other, usable2, conv2
-                candidate_merged = other_merged
-        return take_fit(problem, candidate, usable, conv, with_dof, candidate_merged, accept)
+                candidate_spurious = other_spurious
+        skipped[0] = candidate if candidate_spurious else None
+        return take_fit(problem, candidate, usable, conv, with_dof, candidate_spurious, accept)
 
     def rougher(rss, dof, price):  # BIC: the RSS drop pays for the added effective dof
         return fit["rss"] - rss > price * (dof - fit["dof"])
@@ -655,11 +688,15 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
             d["weight"] = choose_shape_weight(probe, at, p)
         return d
 
-    tie, chosen, smoothest = DecayTie(), 0, None
+    # A spurious candidate is skipped: the next roughness starts from its tracks.
+    tie, chosen, smoothest, start = DecayTie(), 0, None, fit["theta"]
     for g, roughness in enumerate(grid):
         if not try_candidate(roughness, tie, len(grid) > 1 or o["decay_tie"] < 0 or so_offer >= 0,
-                             fit["theta"], rougher, g >= 2):
-            break
+                             start, rougher, g >= 2):
+            if skipped[0] is None:
+                break
+            start = skipped[0]
+            continue
         chosen = g
         if g == 0 and so_offer >= 0:
             so[0] = so_offer
@@ -667,6 +704,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
                 so[0] = -1
         if g == 0:
             smoothest = fit["theta"]
+        start = fit["theta"]
     if fit["problem"] is None:
         raise SystemExit("modal fit: no usable fit even with the smoothest tracks")
     res["track_roughness"] = grid[chosen]
@@ -729,7 +767,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
             def lower(rss, dof, price):
                 return rss + price * (dof + knots) < fit["rss"] + price * (fit["dof"] + local_knots)
 
-            if not take_fit(problem, candidate, usable, conv, True, usable and merged(candidate),
+            if not take_fit(problem, candidate, usable, conv, True, usable and spurious(problem, candidate),
                             lower):
                 break
             local_knots = knots
@@ -765,14 +803,16 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
         design.update(shape_design(base, smoothest, grid[0]))
         first = (final, theta, converged)
         fit.update(problem=None, rss=np.inf, dof=0.0)
-        refit_roughness = None
+        refit_roughness, start = None, smoothest
         for g, roughness in enumerate(grid):
             if roughness >= uniform_roughness:
                 break
-            if not try_candidate(roughness, tie, True, smoothest if g == 0 else fit["theta"],
-                                 rougher, True):
-                break
-            refit_roughness = roughness
+            if not try_candidate(roughness, tie, True, start, rougher, True):
+                if skipped[0] is None:
+                    break
+                start = skipped[0]
+                continue
+            refit_roughness, start = roughness, fit["theta"]
         take = False
         if fit["problem"] is not None:
             prior = prior_rows(track, modes, refit_roughness)

@@ -27,6 +27,15 @@ namespace {
 using Complex = std::complex<double>;
 using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
+// The most by which the whitened energies of the modes' parts of a fit may add up to more than
+// the energy of their sum before the modes count as cancelling (one mode explained by two
+// opposed oscillations; fit_damped_modes, `spurious`). Modes at distinct frequencies dephase
+// within the record and their energies add: 0.8-1.6 in the candidates of the posture trials
+// inspected, 2.1 in one on a sharp stiffness change (x5 in 0.15 s) at 0 degrees, where a mode's
+// amplitude jumps, and 6.7 in the cancelling fit that lost a trial (docs/tfa_modal.md,
+// "Cancelling modes").
+constexpr double kMaxCancellation = 4.0;
+
 // Filtered, decimated free response and the whitening that makes its noise white with unit
 // variance in every channel.
 struct Prepared {
@@ -310,16 +319,7 @@ class VpProblem {
     // whitened contribution Y_j by (integral of B_m) times Y_j (alpha) or i Y_j (omega).
     const int c = static_cast<int>(p_.whiten.rows());
     const int n = static_cast<int>(e.rows());
-    Eigen::MatrixXcd& contribution = contribution_;
-    contribution.setZero(n * c, modes_);
-    for (size_t t = 0; t < terms_.size(); ++t) {
-      const LinearTerm& term = terms_[t];
-      const Complex coef(beta(2 * t), beta(2 * t + 1));
-      for (int i = 0; i < n; ++i) {
-        const Complex v = coef * f_(i, term.function) * e(i, term.mode);
-        for (int k = 0; k < c; ++k) contribution(i * c + k, term.mode) += term.direction(k) * v;
-      }
-    }
+    const Eigen::MatrixXcd& contribution = mode_contributions(e, beta);
     Eigen::MatrixXd& d = d_;
     d.setZero(rd + rp, np);
     for (int j = 0; j < modes_; ++j)
@@ -382,11 +382,49 @@ class VpProblem {
     return true;
   }
 
+  // Whitened energies at theta, over the record: of each mode's part of the model (`modes`), of
+  // their sum (`sum`) and of the second-order terms' part (`distortion`, 0 without them). False
+  // when theta does not evaluate.
+  struct PartEnergies {
+    Eigen::VectorXd modes;
+    double sum = 0.0, distortion = 0.0;
+  };
+  bool part_energies(const double* theta, PartEnergies& out) const {
+    std::vector<double> scratch(residuals());
+    Eigen::VectorXd beta;
+    if (!evaluate(theta, scratch.data(), nullptr, &beta)) return false;
+    const Eigen::MatrixXd parts = mode_contributions(e_, beta).real();
+    out.modes = parts.colwise().squaredNorm().transpose();
+    out.sum = parts.rowwise().sum().squaredNorm();
+    out.distortion =
+        (a_data_.middleCols(first_so(), so_count()) * beta.segment(first_so(), so_count()))
+            .squaredNorm();
+    return true;
+  }
+
   int residuals_count() const { return residuals(); }
   const std::vector<LinearTerm>& terms() const { return terms_; }
   double shape_weight() const { return sqrt_weight_ * sqrt_weight_; }
 
  private:
+  // Whitened part of the model of each mode at the linear solution beta ((N C) x modes; the model
+  // is its real part), in the work buffer contribution_.
+  const Eigen::MatrixXcd& mode_contributions(const Eigen::MatrixXcd& e,
+                                             const Eigen::VectorXd& beta) const {
+    const int c = static_cast<int>(p_.whiten.rows());
+    const int n = static_cast<int>(e.rows());
+    contribution_.setZero(n * c, modes_);
+    for (size_t t = 0; t < terms_.size(); ++t) {
+      const LinearTerm& term = terms_[t];
+      const Complex coef(beta(2 * t), beta(2 * t + 1));
+      for (int i = 0; i < n; ++i) {
+        const Complex v = coef * f_(i, term.function) * e(i, term.mode);
+        for (int k = 0; k < c; ++k) contribution_(i * c + k, term.mode) += term.direction(k) * v;
+      }
+    }
+    return contribution_;
+  }
+
   const Prepared& p_;
   int modes_;
   Eigen::MatrixXd ig_;  // (N x M) running integrals of the track basis, s
@@ -1117,13 +1155,21 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     for (int j = 0; j < modes; ++j) omega.col(j) = track_values * at.segment((2 * j + 1) * m, m);
     return omega;
   };
-  // Two modes whose frequency tracks agree within min_mode_separation of their mean at every
-  // sample are one mode counted twice: a confluent pair (A + B tau) exp(Phi) with large,
-  // cancelling amplitudes, not two modes of the arm (the validity checks flag every frame of
-  // such a fit). The roughness continuation does not take such a candidate, and of its two starts
-  // the one that does not merge is preferred; a merged fit from the continuation's start alone
-  // gets the start tracks as a second start (docs/tfa_modal.md, "Merged modes").
-  auto merged = [&](const Eigen::VectorXd& at) {
+  // A fit that explains the response with fewer modes than it claims (docs/tfa_modal.md,
+  // "Merged modes" and "Cancelling modes"):
+  // - two modes whose frequency tracks agree within min_mode_separation of their mean at every
+  //   sample are one mode counted twice: a confluent pair (A + B tau) exp(Phi) with large,
+  //   cancelling amplitudes, not two modes of the arm (the validity checks flag every frame);
+  // - modes whose parts of the model cancel, their whitened energies over the record adding up to
+  //   more than kMaxCancellation times that of their sum, are the same with tracks apart (one
+  //   mode's amplitude change followed by two opposed oscillations);
+  // - second-order terms whose part of the model has more energy than the mode that carries
+  //   them are no small distortion of it: they stand in for a mode (the harmonic exp(2 Phi_j) of
+  //   a spurious mode at half a weak mode's frequency).
+  // The roughness continuation does not take such a candidate, and of its two starts the one
+  // that is not spurious is preferred; a spurious fit from the continuation's start alone gets
+  // the start tracks as a second start.
+  auto spurious = [&](const VpProblem& problem, const Eigen::VectorXd& at) {
     const Eigen::ArrayXXd omega = frequency_tracks(at);
     for (int j = 0; j < modes; ++j)
       for (int l = j + 1; l < modes; ++l) {
@@ -1131,17 +1177,21 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
             (omega.col(j) - omega.col(l)).abs() / (0.5 * (omega.col(j).abs() + omega.col(l).abs()));
         if (relative_gap.maxCoeff() < options.min_mode_separation) return true;
       }
-    return false;
+    VpProblem::PartEnergies energy;
+    if (!problem.part_energies(at.data(), energy)) return true;
+    if (energy.modes.sum() > kMaxCancellation * energy.sum) return true;
+    const int so = problem.second_order_mode();
+    return so >= 0 && energy.distortion >= energy.modes(so);
   };
   // Takes the fit `o` at `candidate` of `problem` (stage1, theta, outcome, previous_*) when it is
-  // usable, not merged (`merged_fit`, the caller's test) and, once a fit has been taken,
+  // usable, not spurious (`spurious_fit`, the caller's test) and, once a fit has been taken,
   // `accept` says so for its RSS, effective parameters and the BIC price ln(N) s^2, s^2 = RSS /
   // (N - dof), never below 1; false otherwise.
   auto take_fit = [&](std::unique_ptr<VpProblem>& problem, const Eigen::VectorXd& candidate,
-                      const StageOutcome& o, bool with_dof, bool merged_fit, auto&& accept) {
+                      const StageOutcome& o, bool with_dof, bool spurious_fit, auto&& accept) {
     double rss = 0.0, dof = 0.0;
     if (!o.usable || !fit_size(*problem, candidate, with_dof, rss, dof)) return false;
-    if (merged_fit) return false;
+    if (spurious_fit) return false;
     const double rows = problem->data_rows();
     const double variance = std::max(1.0, rss / std::max(1.0, rows - dof));
     if (stage1 && !accept(rss, dof, std::log(rows) * variance)) return false;
@@ -1155,43 +1205,46 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   };
   // Fits one candidate from `start` (with `restart`, also from the start tracks: the lower cost
   // is kept); taken (take_fit) when `accept` says so for its RSS and effective parameters; false
-  // when it is not usable, merged or not taken.
+  // when it is not usable, spurious or not taken. A usable fit refused as spurious goes to
+  // `skipped` (when given; emptied otherwise).
   auto try_candidate = [&](double roughness, const TrackTies& candidate_ties, bool with_dof,
-                           const Eigen::VectorXd& start, auto&& accept, bool restart = false) {
+                           const Eigen::VectorXd& start, auto&& accept, bool restart = false,
+                           Eigen::VectorXd* skipped = nullptr) {
     auto problem = std::make_unique<VpProblem>(p, modes, integrals, design.functions, design.terms,
                                                design.pairs, design.weight,
                                                prior_rows(track, modes, roughness), candidate_ties,
                                                real, options.offsets, so_mode, design.phase_factor);
     Eigen::VectorXd candidate = start;
     StageOutcome o;
-    // Merged modes (`merged`) are refused once a fit has been taken (something to fall back on).
+    // Spurious fits (`spurious`) are refused once a fit has been taken (something to fall back
+    // on).
     const bool check = stage1 != nullptr;
-    auto is_merged = [&](const StageOutcome& so, const Eigen::VectorXd& at) {
-      return check && so.usable && merged(at);
+    auto is_spurious = [&](const StageOutcome& so, const Eigen::VectorXd& at) {
+      return check && so.usable && spurious(*problem, at);
     };
-    bool candidate_merged = false;  // is_merged(o, candidate), once per fit
-    // Takes the fit from the start tracks (merged or not: `other_merged`) when it is usable and
-    // the kept one is not, or is merged while it is not, or (equally merged) has the higher
-    // cost: the same choice at any thread count (the continuation's on a tie).
+    bool candidate_spurious = false;  // is_spurious(o, candidate), once per fit
+    // Takes the fit from the start tracks (spurious or not: `other_spurious`) when it is usable
+    // and the kept one is not, or is spurious while it is not, or (equally spurious) has the
+    // higher cost: the same choice at any thread count (the continuation's on a tie).
     auto take_cold = [&](const StageOutcome& from_cold, const Eigen::VectorXd& other) {
-      const bool other_merged = is_merged(from_cold, other);
+      const bool other_spurious = is_spurious(from_cold, other);
       const bool prefer =
           from_cold.usable &&
           (!o.usable ||
-           (candidate_merged != other_merged ? candidate_merged : from_cold.cost < o.cost));
+           (candidate_spurious != other_spurious ? candidate_spurious : from_cold.cost < o.cost));
       if (prefer) {
         o = from_cold;
         candidate = other;
-        candidate_merged = other_merged;
+        candidate_spurious = other_spurious;
       }
     };
     const bool other_start = start.size() == cold.size() && start != cold;
     if (!restart || !other_start) {
       o = solve(*problem, candidate, options.max_iterations);
       result.iterations += o.iterations;
-      candidate_merged = is_merged(o, candidate);
-      // A merged fit from the continuation: the start tracks get their chance.
-      if (other_start && candidate_merged) {
+      candidate_spurious = is_spurious(o, candidate);
+      // A spurious fit from the continuation: the start tracks get their chance.
+      if (other_start && candidate_spurious) {
         Eigen::VectorXd other = cold;
         const StageOutcome from_cold = solve(*problem, other, options.max_iterations);
         result.iterations += from_cold.iterations;
@@ -1209,10 +1262,11 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
           from_cold = solve(twin, other, options.max_iterations);
       });
       result.iterations += o.iterations + from_cold.iterations;
-      candidate_merged = is_merged(o, candidate);
+      candidate_spurious = is_spurious(o, candidate);
       take_cold(from_cold, other);
     }
-    return take_fit(problem, candidate, o, with_dof, candidate_merged, accept);
+    if (skipped) *skipped = candidate_spurious ? candidate : Eigen::VectorXd();
+    return take_fit(problem, candidate, o, with_dof, candidate_spurious, accept);
   };
   auto rougher = [&](double rss, double dof, double price) {
     return previous_rss - rss > price * (dof - previous_dof);
@@ -1291,18 +1345,27 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   so_mode = -1;
   std::size_t chosen = 0;
   Eigen::VectorXd smoothest;  // the smoothest constant-shape fit, where the shape stage may start
+  // A spurious candidate is skipped, not the end of the continuation: smooth tracks that cannot
+  // follow a stiffness change may lend a barely excited mode to the strong one's amplitude change
+  // (cancelling modes) and the next roughness, from its tracks, separate them again
+  // (docs/tfa_modal.md, "Cancelling modes").
+  Eigen::VectorXd start = theta, skipped;
   for (std::size_t g = 0; g < grid.size(); ++g) {
     if (!try_candidate(grid[g], ties,
                        grid.size() > 1 || options.decay_tie < 0.0 || options.frequency_tie < 0.0 ||
                            so_offer >= 0,
-                       theta, rougher, g >= 2))
-      break;
+                       start, rougher, g >= 2, &skipped)) {
+      if (skipped.size() == 0) break;
+      start = skipped;
+      continue;
+    }
     chosen = g;
     if (g == 0 && so_offer >= 0) {
       so_mode = so_offer;
       if (!try_candidate(grid[0], ties, true, theta, rougher)) so_mode = -1;
     }
     if (g == 0) smoothest = theta;
+    start = theta;
   }
   if (!stage1) {
     result.status = Status::failure("modal fit: no usable fit even with the smoothest tracks");
@@ -1404,7 +1467,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       auto lower = [&](double rss, double dof, double price) {
         return rss + price * (dof + knots) < previous_rss + price * (previous_dof + local_knots);
       };
-      if (!take_fit(problem, candidate, o, true, o.usable && merged(candidate), lower)) break;
+      if (!take_fit(problem, candidate, o, true, o.usable && spurious(*problem, candidate), lower))
+        break;
       local_knots = knots;
       roughness_sd = sd;
       result.track_roughness = grid[g];
@@ -1469,8 +1533,14 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     // Every candidate from two starts (the continuation's fit and the start tracks): the start
     // tracks were not fitted in this design, so they are a start of their own from the first
     // candidate on (stage 1 takes them from the third).
+    Eigen::VectorXd refit_start = smoothest, refit_skipped;  // spurious candidates skipped
     for (std::size_t g = 0; g < grid.size() && grid[g] < uniform_roughness; ++g) {
-      if (!try_candidate(grid[g], ties, true, g == 0 ? smoothest : theta, rougher, true)) break;
+      if (!try_candidate(grid[g], ties, true, refit_start, rougher, true, &refit_skipped)) {
+        if (refit_skipped.size() == 0) break;
+        refit_start = refit_skipped;
+        continue;
+      }
+      refit_start = theta;
       refit_roughness = grid[g];
     }
     bool take_refit = false;

@@ -389,6 +389,48 @@ BOOST_AUTO_TEST_CASE(a_merged_pair_of_modes_is_never_taken_by_the_roughness_cont
   }
 }
 
+BOOST_AUTO_TEST_CASE(fits_with_fewer_modes_than_they_claim_are_not_taken) {
+  // Sigmoid K with the hand at (0.45, -0.1) m instead of (0.4, 0) m, pulse at 45 degrees, 20 dB:
+  // the modes are 2.27 and 3.71 Hz at 2.6 s, the faster one ~9 dB weaker. Seed 1: the mode
+  // that carries the second-order terms (the strongest at the start tracks) moved to 1.84 Hz,
+  // half the weak mode's frequency, the other mode took its place, and the terms' harmonic
+  // exp(2 Phi) stood in for the weak mode (the terms' part 6 times the energy of the 1.84 Hz
+  // mode that carried them): every frame to 4.4 s was vouched for, with k22 65 % off. Seed 2:
+  // of the two starts at roughness 0.1 the lower-cost fit had modes whose parts cancel (their
+  // energies 6.7 times that of their sum: two opposed oscillations for one mode), and the
+  // continuation went on in that basin, k22 57-61 % off. Neither is taken now (each check alone
+  // fixes one seed): every one of issue 7's 20 dB posture targets, the frames where the weak
+  // mode is lost in the noise flagged.
+  for (const unsigned seed : {1u, 2u}) {
+    m::TrialSpec spec = spec_at("piovesan_posture_sigmoid", 45.0);
+    spec.task.posture_hand_m = Eigen::Vector2d(0.45, -0.1);
+    const Case c = run_spec(spec, 20.0, seed);
+    BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
+    BOOST_TEST_MESSAGE("sigmoid, hand (0.45, -0.1) m, 45 deg, seed "
+                       << seed << " (K_valid " << k_valid_share(c, 2.6, 4.5) << "):" << report(c));
+    check_posture_targets_but_c12(c);
+    BOOST_CHECK_LE(percent_rms_error(c, true, 0, 1, 2.6, 4.5), 35.0);
+    BOOST_CHECK_GE(k_valid_share(c, 2.6, 4.5), 0.7);
+  }
+}
+
+BOOST_AUTO_TEST_CASE(a_spurious_candidate_does_not_end_the_roughness_continuation) {
+  // Sigmoid K, pulse at 0 degrees (one mode barely excited), 20 dB, seed 5: the smooth tracks of
+  // the continuation's second candidate cannot follow the stiffness change and lend the weak
+  // mode to the strong one's amplitude change (modes' energies 6 and 18 times that of their
+  // sum from the two starts). Refusing it ended the continuation at the smoothest roughness:
+  // k11 102 % off over 2.6-3.175 s with a quarter of the frames vouched for blown up. Skipped,
+  // the next roughness, from its tracks, separates the modes again: every one of issue 7's 20
+  // dB posture targets.
+  const Case c = run_spec(spec_at("piovesan_posture_sigmoid", 0.0), 20.0, 5);
+  BOOST_REQUIRE_MESSAGE(c.tfa.status.ok, c.tfa.status.message);
+  BOOST_TEST_MESSAGE("sigmoid, 0 deg, seed 5 (K_valid " << k_valid_share(c, 2.6, 4.5)
+                                                        << "):" << report(c));
+  check_posture_targets_but_c12(c);
+  BOOST_CHECK_LE(percent_rms_error(c, true, 0, 1, 2.6, 4.5), 35.0);
+  BOOST_CHECK_GE(k_valid_share(c, 2.6, 4.5), 0.9);
+}
+
 BOOST_AUTO_TEST_CASE(a_rotating_stiffness_ellipse_is_followed_by_the_mode_shapes) {
   // models/specs/piovesan_posture_rotating.json: K = R(phi) K0 R(phi)^T with phi from 0 to 30
   // degrees along the sigmoid and C = 0.01 K, so the mode shapes turn within the trial. 20 dB.
