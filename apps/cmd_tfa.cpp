@@ -65,6 +65,7 @@ struct TfaCommandOptions {
                                                  window = "kaiser:3", output_path, spectrogram_path;
   double sample_rate_hz = 0.0;  // --fs, Hz: for files without a t column (0: from t)
   bool no_shape_refit = false;
+  bool no_second_order = false;
   estimators::TfaOptions tfa;
 };
 
@@ -187,6 +188,7 @@ void run(TfaCommandOptions cli) {
   o.method = estimators::parse_tfa_method(cli.method);
   o.modes.design = estimators::parse_modal_design(cli.design);
   o.modes.shape_refit = !cli.no_shape_refit;
+  o.modes.second_order = !cli.no_second_order;
   o.modal_parameters.mapping = estimators::parse_modal_mapping(cli.mapping);
   if (o.modal_parameters.mapping != estimators::ModalMapping::paper_eq48 &&
       o.method != estimators::TfaMethod::modal) {
@@ -482,6 +484,9 @@ void add_tfa_command(CLI::App& app) {
   sub->add_flag("--no-shape-refit", cli->no_shape_refit,
                 "modal: do not refit smoother tracks with varying mode shapes when the "
                 "constant-shape fit chose rough tracks (docs/tfa_modal.md, \"Shape refit\")");
+  sub->add_flag("--no-second-order", cli->no_second_order,
+                "modal: do not offer the strongest mode's quadratic distortion terms (docs/"
+                "tfa_modal.md, \"Quadratic distortion of the strongest mode\")");
   sub->add_option("--baseline", cli->baseline_path,
                   "unperturbed trial (same angle channels and rate); default: the posture is "
                   "the mean over 0.2 s before the onset");

@@ -162,6 +162,15 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   BOOST_CHECK(j["options"]["offsets"].get<bool>());
   BOOST_CHECK(j["options"]["second_order"].get<bool>());
   BOOST_CHECK(j["second_order_mode"].get<int>() >= 0);
+  {
+    // --no-second-order: the terms are not offered, and the JSON says so.
+    const fs::path plain = scratch("no_second_order.json");
+    BOOST_REQUIRE_EQUAL(
+        run(kTrial + " --angles th1,th2 --onset 2.5 --no-second-order -o " + plain.string()), 0);
+    const nlohmann::json q = read_json(plain);
+    BOOST_CHECK(!q["options"]["second_order"].get<bool>());
+    BOOST_CHECK_EQUAL(q["second_order_mode"].get<int>(), -1);
+  }
   BOOST_CHECK_EQUAL(j["offset_rad"].size(), 2u);
   // A Kelvin-Voigt arm has no real poles: no real term is added.
   BOOST_CHECK_EQUAL(j["real_terms"].size(), 0u);
