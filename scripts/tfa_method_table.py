@@ -6,6 +6,7 @@
                               [--methods modal,spectrogram]
                               [--specs [NAME=]SPEC.json,...] [--summary] [-o TABLE.md]
                               [--intervals 2.6-3.175,2.6-4.5] [--valid-only]
+                              [--set KEY=JSON ...]
 
 For every profile (Piovesan's posture specs in models/specs/) or every spec file given with
 --specs (named NAME, or the file name without "piovesan_posture_" and ".json"), impulse direction,
@@ -24,7 +25,12 @@ frames a method vouches for (K_valid for modal, every mode valid for spectrogram
 over seeds per trial, direction and method, and over directions and seeds per trial and method,
 with the count of runs meeting issue 7's targets (--targets K11,K22,K12 in % over 2.6-4.5 s,
 default 10,10,25 for the non-common-factor trials; 15,15,20 for the 10 dB sigmoid case; and no
-blown K frame). Prints Markdown tables (and writes them with -o).
+blown K frame). --set KEY=JSON (repeatable) changes every spec before the run, KEY a dotted path
+whose integer parts index lists, e.g. --set task.hand_m=[0.45,-0.1] --set sample_rate_hz=1000
+--set perturbations.0.amplitude_n=2 (a robustness sweep: docs/tfa_modal.md, "Cancelling
+modes"). The tfa onset is the first perturbation's onset_s, and the intervals (those of the
+targets too) are given for an onset at 2.5 s and move with it.
+Prints Markdown tables (and writes them with -o).
 Needs numpy (Debian python3-numpy); the tests do not use this script.
 """
 import argparse
@@ -55,7 +61,23 @@ def run(cmd):
     return None
 
 
-def errors(tfa, truth):
+def set_key(spec, key, value):
+    """spec[k1][k2]... = value for KEY k1.k2...; integer parts index lists."""
+    parts = key.split(".")
+    node = spec
+    for i, part in enumerate(parts):
+        index = int(part) if isinstance(node, list) else part
+        if isinstance(node, list) and not -len(node) <= index < len(node):
+            raise KeyError("no item %d in a list of %d" % (index, len(node)))
+        if i == len(parts) - 1:
+            node[index] = value
+        else:
+            if not isinstance(node, list) and part not in node:
+                node[part] = {}
+            node = node[index]
+
+
+def errors(tfa, truth, shift=0.0):
     t = np.array(tfa["t_s"])
     tt = np.array(truth["time_s"])
     est = {"K": np.array(tfa["K_nm_per_rad"], dtype=float),
@@ -66,6 +88,8 @@ def errors(tfa, truth):
     k_valid = (np.array(tfa["K_valid"], dtype=bool) if "K_valid" in tfa
                else np.all(np.array(tfa["valid"], dtype=bool), axis=0))
     out = {}
+    t = t - shift  # the intervals are given for an onset at 2.5 s (--set)
+    tt = tt - shift
     for lo, hi in INTERVALS + [(2.6, 4.5)]:  # 2.6-4.5 s always: the targets are over it
         m = (t >= lo) & (t <= hi)
         if VALID_ONLY:
@@ -130,8 +154,19 @@ def main():
                    help="error intervals LO-HI in s, comma-separated")
     p.add_argument("--valid-only", action="store_true",
                    help="K and C errors over the frames the method vouches for only")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=JSON",
+                   help="change every spec: KEY a dotted path (integer parts index lists)")
     p.add_argument("-o", "--output", default="")
     a = p.parse_args()
+    changes = []
+    for item in a.set:
+        key, eq, value = item.partition("=")
+        if not eq or not key:
+            p.error("--set: expected KEY=JSON, got " + item)
+        try:
+            changes.append((key, json.loads(value)))
+        except ValueError as e:
+            p.error("--set %s: the value is not JSON (%s)" % (item, e))
     global TARGETS, INTERVALS, VALID_ONLY
     VALID_ONLY = a.valid_only
     try:
@@ -156,7 +191,14 @@ def main():
                 for snr in a.snr.split(","):
                     for seed in seeds:
                         spec = json.loads(json.dumps(base))
+                        for key, value in changes:
+                            try:
+                                set_key(spec, key, value)
+                            except (KeyError, IndexError, TypeError, ValueError) as e:
+                                sys.exit("--set %s: %s (trial %s)"
+                                         % (key, e.args[0] if e.args else e, name))
                         set_impulse(spec, direction)
+                        onset = float(spec["perturbations"][0]["onset_s"])
                         spec["seed"] = seed
                         set_noise(spec, None if snr == "inf" else float(snr))
                         spec_path = os.path.join(work, "spec.json")
@@ -171,14 +213,14 @@ def main():
                         for method in a.methods.split(","):
                             out = os.path.join(work, "tfa.json")
                             failure = run([a.stiffid, "tfa", trial, "--angles", "th1,th2", "--onset",
-                                           "2.5", "--method", method, "-o", out])
+                                           "%.17g" % onset, "--method", method, "-o", out])
                             row = "| %s | %g | %s | %d | %s | " % (name, direction, snr_text, seed,
                                                                    method)
                             if failure:
                                 row += " | ".join(["failed"] * len(columns)) + " | - | - | - | - | - | - |"
                                 results.setdefault((name, direction, snr_text, method), []).append(None)
                             else:
-                                e = errors(json.load(open(out)), truth_json)
+                                e = errors(json.load(open(out)), truth_json, onset - 2.5)
                                 results.setdefault((name, direction, snr_text, method), []).append(e)
                                 row += " | ".join(fmt(e[(lo, hi, n)]) for lo, hi in INTERVALS
                                                   for n, *_ in COEFFICIENTS)
