@@ -31,9 +31,9 @@ using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::Ro
 // the energy of their sum before the modes count as cancelling (one mode explained by two
 // opposed oscillations; fit_damped_modes, `spurious`). Modes at distinct frequencies dephase
 // within the record and their energies add: 0.8-1.6 in the candidates of the posture trials
-// inspected, 2.1 in one on a sharp stiffness change (x5 in 0.15 s) at 0 degrees, where a mode's
-// amplitude jumps, and 6.7 in the cancelling fit that lost a trial (docs/tfa_modal.md,
-// "Cancelling modes").
+// inspected, 2.1-2.5 where a mode's amplitude jumps (a sharp stiffness change, x5 in 0.15 s, at
+// 0 degrees; the smoothest fit of sigmoid K at 0 degrees), 6.0-17.8 in the cancelling fits that
+// lost trials (docs/tfa_modal.md, "Cancelling modes").
 constexpr double kMaxCancellation = 4.0;
 
 // Filtered, decimated free response and the whitening that makes its noise white with unit
@@ -1166,9 +1166,9 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // - second-order terms whose part of the model has more energy than the mode that carries
   //   them are no small distortion of it: they stand in for a mode (the harmonic exp(2 Phi_j) of
   //   a spurious mode at half a weak mode's frequency).
-  // The roughness continuation does not take such a candidate, and of its two starts the one
-  // that is not spurious is preferred; a spurious fit from the continuation's start alone gets
-  // the start tracks as a second start.
+  // The roughness continuation does not take such a candidate (it skips it), and of its two
+  // starts the one that is not spurious is preferred; a spurious fit from the continuation's
+  // start alone gets the start tracks as a second start.
   auto spurious = [&](const VpProblem& problem, const Eigen::VectorXd& at) {
     const Eigen::ArrayXXd omega = frequency_tracks(at);
     for (int j = 0; j < modes; ++j)
@@ -1347,7 +1347,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   Eigen::VectorXd smoothest;  // the smoothest constant-shape fit, where the shape stage may start
   // A spurious candidate is skipped, not the end of the continuation: smooth tracks that cannot
   // follow a stiffness change may lend a barely excited mode to the strong one's amplitude change
-  // (cancelling modes) and the next roughness, from its tracks, separate them again
+  // (cancelling modes), and the next roughness, from its tracks, may separate them again
   // (docs/tfa_modal.md, "Cancelling modes").
   Eigen::VectorXd start = theta, skipped;
   for (std::size_t g = 0; g < grid.size(); ++g) {
