@@ -27,7 +27,8 @@
 //   ridge, its amplitude-to-noise ratio at least 0 dB, the frame's fits in the ridges' order and
 //   without cancelling modes, and with the chirped fits its model not missing the data),
 //   "anr_db"[j] (both methods; null for the spectrogram when the trial holds no record before the
-//   onset), "K_valid" (per time: every mode valid and eta^2 > Gamma^2; modal).
+//   onset), "K_valid" (per time: every mode valid, eta^2 > Gamma^2, K positive definite and C
+//   positive semidefinite; modal).
 // For --method modal the spectrogram options are not used; "options" lists the modal ones and the
 // data-chosen weights, and f_ridge_hz / alpha_ridge_per_s repeat the fitted tracks.
 // --chirp true (spectrogram method, the default): frame fits whose modes' lambdas change linearly

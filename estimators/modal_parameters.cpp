@@ -1,6 +1,7 @@
 #include "estimators/modal_parameters.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <Eigen/SVD>
 #include <algorithm>
@@ -107,6 +108,13 @@ void mapping_state_space(const Eigen::MatrixXd& m_half, const Eigen::MatrixXd& i
   p = polar_factor(real_shapes(m_half, shapes));
 }
 
+// True when the symmetric matrix `s` has no eigenvalue below -1e-9 times its largest magnitude
+// (round-off).
+bool positive_semidefinite(const Eigen::MatrixXd& s) {
+  const Eigen::VectorXd eig = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(s).eigenvalues();
+  return eig.minCoeff() >= -1e-9 * eig.cwiseAbs().maxCoeff();
+}
+
 }  // namespace
 
 ModalParametersResult modal_parameters(const DampedModesResult& modes,
@@ -164,10 +172,13 @@ ModalParametersResult modal_parameters(const DampedModesResult& modes,
       k = 0.5 * (k + k.transpose()).eval();
       d = 0.5 * (d + d.transpose()).eval();
     }
-    // The joint stiffness of a limb holding a posture is positive definite: an indefinite K(t)
-    // comes from tracks the data do not determine (e.g. two modes merged).
+    // The joint stiffness of a limb holding a posture is positive definite, and its damping, a
+    // passive viscosity, positive semidefinite (within round-off): an indefinite K(t) or C(t)
+    // comes from tracks the data do not determine (e.g. two modes merged, or a mode whose
+    // decay swings to growth; docs/tfa_modal.md, "Passive damping").
     r.valid(i) = valid && k.allFinite() && d.allFinite() &&
-                 Eigen::LLT<Eigen::MatrixXd>(0.5 * (k + k.transpose())).info() == Eigen::Success;
+                 Eigen::LLT<Eigen::MatrixXd>(0.5 * (k + k.transpose())).info() == Eigen::Success &&
+                 positive_semidefinite(0.5 * (d + d.transpose()));
     r.eigenvectors.push_back(std::move(p));
     r.stiffness.push_back(std::move(k));
     r.damping.push_back(std::move(d));

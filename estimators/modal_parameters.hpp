@@ -63,8 +63,9 @@ struct ModalParametersResult {
   std::vector<Eigen::MatrixXd> stiffness;     ///< [T] (C x C) joint stiffness K(t), N m/rad when
                                               ///< channels are rad and inertia kg m^2
   std::vector<Eigen::MatrixXd> damping;       ///< [T] (C x C) joint damping C(t), N m s/rad
-  Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] every mode valid at t, eta^2 > Gamma^2
-                                                ///< and K(t) positive definite
+  Eigen::Array<bool, Eigen::Dynamic, 1> valid;  ///< [T] every mode valid at t, eta^2 > Gamma^2,
+                                                ///< K(t) positive definite and C(t) positive
+                                                ///< semidefinite
 };
 
 /// Eq 43's P (C x n, orthonormal columns, n <= C) from the real M^1/2-normalized mode shapes

@@ -95,6 +95,22 @@ std::pair<double, double> worst_errors(const Case& cs, ModalMapping mapping,
   return {ek, ec};
 }
 
+// One frame of a mode with constant tracks: omega (rad/s), alpha (1/s; negative: decaying), a
+// real shape, its ANR (dB), flagged valid.
+stiffid::estimators::ModeTrack constant_track(double omega, double alpha,
+                                              const Eigen::Vector2d& shape, double anr_db) {
+  stiffid::estimators::ModeTrack mt;
+  mt.omega_rad_per_s = Eigen::VectorXd::Constant(1, omega);
+  mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
+  mt.omega_dot_rad_per_s2 = Eigen::VectorXd::Zero(1);
+  mt.alpha_per_s = Eigen::VectorXd::Constant(1, alpha);
+  mt.alpha_dot_per_s2 = Eigen::VectorXd::Zero(1);
+  mt.shape = (0.01 * shape).cast<std::complex<double>>().transpose();
+  mt.anr_db = Eigen::VectorXd::Constant(1, anr_db);
+  mt.valid = Eigen::Array<bool, Eigen::Dynamic, 1>::Constant(1, true);
+  return mt;
+}
+
 }  // namespace
 
 BOOST_AUTO_TEST_CASE(constant_k_and_proportional_c_recovered_to_one_percent_noise_free) {
@@ -183,23 +199,11 @@ BOOST_AUTO_TEST_CASE(a_weak_modes_noisy_shape_moves_p_by_its_weight) {
   // tan phi = w2 sin delta / (w1 + w2 cos delta): K = R(phi) diag(eta^2) R(phi)^T in closed
   // form. Equal ANRs give phi = delta / 2 (the unweighted polar factor).
   const double delta = 0.2, omega1 = 15.0, omega2 = 22.0, alpha1 = -1.0, alpha2 = -2.0;
-  auto track = [](double omega, double alpha, Eigen::Vector2d shape, double anr_db) {
-    stiffid::estimators::ModeTrack mt;
-    mt.omega_rad_per_s = Eigen::VectorXd::Constant(1, omega);
-    mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
-    mt.omega_dot_rad_per_s2 = Eigen::VectorXd::Zero(1);
-    mt.alpha_per_s = Eigen::VectorXd::Constant(1, alpha);
-    mt.alpha_dot_per_s2 = Eigen::VectorXd::Zero(1);
-    mt.shape = (0.01 * shape).cast<std::complex<double>>().transpose();
-    mt.anr_db = Eigen::VectorXd::Constant(1, anr_db);
-    mt.valid = Eigen::Array<bool, Eigen::Dynamic, 1>::Constant(1, true);
-    return mt;
-  };
   for (const double weak_db : {30.0, 40.0}) {
     stiffid::estimators::DampedModesResult modes;
     modes.t_s = Eigen::VectorXd::Constant(1, 3.0);
-    modes.modes = {track(omega1, alpha1, {1.0, 0.0}, 40.0),
-                   track(omega2, alpha2, {-std::sin(delta), std::cos(delta)}, weak_db)};
+    modes.modes = {constant_track(omega1, alpha1, {1.0, 0.0}, 40.0),
+                   constant_track(omega2, alpha2, {-std::sin(delta), std::cos(delta)}, weak_db)};
     const auto r = modal_parameters(modes, {Eigen::Matrix2d::Identity()}, {});
     const double w2 = std::pow(10.0, (weak_db - 40.0) / 10.0);
     const double phi = std::atan2(w2 * std::sin(delta), 1.0 + w2 * std::cos(delta));
@@ -309,4 +313,22 @@ BOOST_AUTO_TEST_CASE(frames_whose_mode_shapes_are_parallel_are_flagged_not_fatal
   BOOST_CHECK(!all.status.ok);
   BOOST_CHECK(all.status.message.find("parallel at every one") != std::string::npos);
   BOOST_CHECK(!all.separated.any());
+}
+
+BOOST_AUTO_TEST_CASE(a_growing_mode_makes_c_indefinite_and_the_frame_invalid) {
+  // M = I, modes along e1 and e2, omega 15 and 22 rad/s: K = diag(eta^2), C = diag(2 Gamma) with
+  // Gamma = -alpha (eq 45, constant tracks). A passive joint's damping is positive semidefinite:
+  // a mode whose fitted decay turns into growth (alpha2 > 0) gives C an eigenvalue -2 alpha2 < 0,
+  // and the frame is not vouched for even though K is positive definite. An undamped mode
+  // (alpha2 = 0: C singular, semidefinite) and a decaying one keep it.
+  for (const double alpha2 : {-2.0, 0.0, 2.0}) {
+    stiffid::estimators::DampedModesResult modes;
+    modes.t_s = Eigen::VectorXd::Constant(1, 3.0);
+    modes.modes = {constant_track(15.0, -1.0, {1.0, 0.0}, 40.0),
+                   constant_track(22.0, alpha2, {0.0, 1.0}, 40.0)};
+    const auto r = modal_parameters(modes, {Eigen::Matrix2d::Identity()}, {});
+    BOOST_CHECK_SMALL(r.damping[0](1, 1) + 2.0 * alpha2, 1e-12);
+    BOOST_CHECK(r.stiffness[0].llt().info() == Eigen::Success);  // K positive definite
+    BOOST_CHECK_EQUAL(static_cast<bool>(r.valid(0)), alpha2 <= 0.0);
+  }
 }
