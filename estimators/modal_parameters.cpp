@@ -111,7 +111,8 @@ void mapping_state_space(const Eigen::MatrixXd& m_half, const Eigen::MatrixXd& i
 // True when the symmetric matrix `s` has no eigenvalue below -1e-9 times its largest magnitude
 // (round-off).
 bool positive_semidefinite(const Eigen::MatrixXd& s) {
-  const Eigen::VectorXd eig = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(s).eigenvalues();
+  const Eigen::VectorXd eig =
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(s, Eigen::EigenvaluesOnly).eigenvalues();
   return eig.minCoeff() >= -1e-9 * eig.cwiseAbs().maxCoeff();
 }
 
