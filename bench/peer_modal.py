@@ -550,7 +550,9 @@ def complete_basis(u):
     return q
 
 
-def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
+def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
+    """mass_at(t_s): the channels' mass metric (C x C, kg m^2); given, alpha_j and omega_j are the
+    modal coordinate's, |a_j|_M exp(Re Phi_j) (docs/tfa_modal.md, "Modal amplitude")."""
     p = prepare(x, rate_hz, start_s, onset_s, o)
     n, c = p["y"].shape
     res = dict(t_s=p["t_s"], rate_hz=p["rate_hz"], noise_cov=p["noise_cov"], data=p["y"],
@@ -862,6 +864,9 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
     coef = beta[0:final.nt:2] + 1j * beta[1:final.nt:2]
     th = theta[:2 * modes * m].reshape(modes, 2, m)
     lower = p["L"].astype(complex)
+    if mass_at is not None:
+        metric = np.array([mass_at(t) for t in p["t_s"]])  # (N, C, C)
+        metric_dot = np.gradient(metric, p["t_s"], axis=0) if n > 1 else np.zeros_like(metric)
     fitted = np.zeros((n, c))
     tracks = []
     for j in range(modes):
@@ -880,6 +885,19 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes):
         a = w @ lower.T
         a_dot = w_dot @ lower.T
         mt["shape"] = a
+        if mass_at is not None:
+            norm2 = np.einsum("ik,ikl,il->i", np.conj(a), metric, a).real
+            rate = (np.einsum("ik,ikl,il->i", np.conj(a), metric, a_dot)
+                    + 0.5 * np.einsum("ik,ikl,il->i", np.conj(a), metric_dot, a))
+            safe = np.where(norm2 > 0, norm2, 1.0)
+            d_alpha = np.where(norm2 > 0, rate.real / safe, 0.0)
+            d_omega = np.where(norm2 > 0, rate.imag / safe, 0.0)
+            grad = (lambda v: np.gradient(v, p["t_s"])) if n > 1 else np.zeros_like
+            mt["alpha"] = mt["alpha"] + d_alpha
+            mt["omega"] = mt["omega"] + d_omega
+            mt["alpha_dot"] = mt["alpha_dot"] + grad(d_alpha)
+            mt["omega_dot"] = mt["omega_dot"] + grad(d_omega)
+            mt["f"] = mt["omega"] / (2 * np.pi)
         growth, phase_integral = ig @ ca, ig @ cw
         mt["envelope"] = np.abs(a) * np.exp(growth)[:, None]
         mt["phase"] = np.unwrap(np.angle(a), axis=0) + phase_integral[:, None]
@@ -1044,7 +1062,9 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
     if available >= 0.1:
         o["noise_window_s"] = min(o["noise_window_s"], available)
     modes = ang.shape[1]
-    fit = fit_damped_modes(dev, fs, start_s, onset_s, o, modes)
+    # M(theta_0(t)): the posture is constant without a baseline.
+    fit = fit_damped_modes(dev, fs, start_s, onset_s, o, modes,
+                           mass_at=lambda t_s: inertia(posture[1]))
     tracks = fit["modes"]
     times = fit["t_s"]
     decimation = max(1, lround(fs / fit["rate_hz"]))

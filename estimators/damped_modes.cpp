@@ -12,8 +12,10 @@
 #include <memory>
 #include <numeric>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <tuple>
+#include <type_traits>
 #include <utility>
 
 #include "data/parallel.hpp"
@@ -703,6 +705,17 @@ bool lower_bic(const VpProblem& a, const Eigen::VectorXd& theta_a, const VpProbl
          bic(rss_a, dof_a) < bic(rss_b, dof_b);
 }
 
+// d/dt at sample i of a quantity x(i) sampled at t_s: central differences, one-sided at the ends
+// (x's units per s; zero for a single sample).
+template <class Sample>
+auto slope_at(Eigen::Index i, const Eigen::VectorXd& t_s, Sample&& x)
+    -> std::decay_t<decltype(x(i))> {
+  const Eigen::Index lo = std::max<Eigen::Index>(0, i - 1);
+  const Eigen::Index hi = std::min<Eigen::Index>(t_s.size() - 1, i + 1);
+  if (hi == lo) return x(lo) * 0.0;
+  return (x(hi) - x(lo)) / (t_s(hi) - t_s(lo));
+}
+
 // Orthonormal basis (C x C) whose first column is u / |u| (complex Householder completion).
 Eigen::MatrixXcd complete_basis(const Eigen::VectorXcd& u) {
   const Eigen::HouseholderQR<Eigen::MatrixXcd> qr(u);
@@ -1051,6 +1064,19 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   result.rate_hz = p.rate_hz;
   result.noise_covariance = p.noise_cov;
   result.data = p.y;
+  // The mass metric at the fitted samples and its slope (options.mass_metric), checked before
+  // the fit.
+  std::vector<Eigen::MatrixXd> metric, metric_dot;
+  if (options.mass_metric) {
+    for (int i = 0; i < n; ++i) {
+      metric.push_back(options.mass_metric(p.t_s(i)));
+      if (metric.back().rows() != c || metric.back().cols() != c || !metric.back().allFinite())
+        throw std::invalid_argument("fit_damped_modes: mass_metric must give finite " +
+                                    std::to_string(c) + " x " + std::to_string(c) + " matrices");
+    }
+    for (int i = 0; i < n; ++i)
+      metric_dot.push_back(slope_at(i, p.t_s, [&](Eigen::Index k) { return metric[k]; }));
+  }
 
   const UniformCubicBspline track(p.tau_s(n - 1), options.knot_spacing_s);
   // Real terms: as given, or the fewest (0 .. 2n) with which the global pencil finds the n
@@ -1651,6 +1677,28 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     const Eigen::MatrixXcd lower = p.cholesky.cast<Complex>();
     mt.shape = w * lower.transpose();
     const Eigen::MatrixXcd shape_dot = w_dot * lower.transpose();
+    if (!metric.empty()) {
+      // The modal coordinate q_j = |a_j|_M e^{Re Phi_j} (docs/tfa_modal.md, "Modal amplitude"):
+      // d/dt ln q_j adds Re(a^H M a' + a^H M' a / 2) / |a|_M^2 to alpha_j, and its phase rate
+      // Im(a^H M a') / |a|_M^2 (the M-weighted mean of the channels') goes to omega_j.
+      Eigen::VectorXd d_alpha(n), d_omega(n);
+      for (int i = 0; i < n; ++i) {
+        const Eigen::VectorXcd a = mt.shape.row(i).transpose();
+        const Eigen::VectorXcd a_dot = shape_dot.row(i).transpose();
+        const double norm2 = a.dot(metric[i] * a).real();  // a^H M a, |a|_M^2
+        const Complex rate = a.dot(metric[i] * a_dot) + 0.5 * a.dot(metric_dot[i] * a);
+        d_alpha(i) = norm2 > 0.0 ? rate.real() / norm2 : 0.0;
+        d_omega(i) = norm2 > 0.0 ? rate.imag() / norm2 : 0.0;
+      }
+      mt.alpha_per_s += d_alpha;
+      mt.omega_rad_per_s += d_omega;
+      for (int i = 0; i < n; ++i) {
+        mt.alpha_dot_per_s2(i) += slope_at(i, p.t_s, [&](Eigen::Index k) { return d_alpha(k); });
+        mt.omega_dot_rad_per_s2(i) +=
+            slope_at(i, p.t_s, [&](Eigen::Index k) { return d_omega(k); });
+      }
+      mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
+    }
     mt.envelope.resize(n, c);
     mt.phase_rad.resize(n, c);
     mt.log_envelope_rate_per_s.resize(n, c);

@@ -84,6 +84,11 @@ void identify_modal(TfaResult& r, const TfaOptions& options) {
   DampedModesOptions mo = options.modes;
   mo.modes = n;
   mo.skip_s = std::max(mo.skip_s, dev.free_start_s - dev.onset_s);
+  if (!mo.mass_metric) {
+    mo.mass_metric = [&dev, &options](double t_s) {
+      return inertia_at(dev, options.arm, Eigen::VectorXd::Constant(1, t_s))[0];
+    };
+  }
   // The noise window reaches back as far as the record allows (less a margin for the filter).
   const double available_s = dev.onset_s - dev.start_time_s - 0.05;
   if (available_s >= 0.1) mo.noise_window_s = std::min(mo.noise_window_s, available_s);

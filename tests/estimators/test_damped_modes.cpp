@@ -1,9 +1,14 @@
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <boost/test/unit_test.hpp>
 #include <cmath>
 #include <complex>
 #include <functional>
 #include <random>
+#include <stdexcept>
 #include <utility>
+#include <vector>
 
 #include "data/error.hpp"
 #include "estimators/damped_modes.hpp"
@@ -329,6 +334,76 @@ BOOST_AUTO_TEST_CASE(mode_shapes_that_rotate_are_fitted_as_shapes_not_as_rough_t
     BOOST_CHECK_LE(e.f_rel, 0.01);
     BOOST_CHECK_LE(e.alpha_rel, 0.06);
   }
+}
+
+BOOST_AUTO_TEST_CASE(a_shape_turning_in_the_mass_metric_keeps_its_modal_decay_and_frequency) {
+  // The tracks of spline_exact_modes() with real mode shapes that turn as an arm's eigenvectors
+  // do: a_j(tau) = M^-1/2 R(phi) M^1/2 a_j(0), phi = 0.25 rad/s tau, so that the modal amplitude
+  // |a_j|_M stays constant for M = [2 0.6; 0.6 0.5] (kg m^2, say) while the Euclidean one does
+  // not. The fit holds each mode's amplitude along its constant shape fixed, the varying part
+  // orthogonal in the whitened channels: the amplitude change along the constant shape goes into
+  // alpha_j unless the decay and frequency are read as the modal coordinate's in the mass metric
+  // (DampedModesOptions::mass_metric). 20 dB, 8 noise draws; medians over the draws (a draw whose
+  // fit keeps constant shapes, which the metric does not change, counts as it comes).
+  auto [m1, m2] = spline_exact_modes();
+  m1.a0 = 1.0, m1.a1 = 0.5;
+  m2.a0 = -0.3, m2.a1 = 0.6;
+  Eigen::Matrix2d mass;
+  mass << 2.0, 0.6, 0.6, 0.5;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(mass);
+  const Eigen::Matrix2d root = eig.operatorSqrt(), inverse_root = eig.operatorInverseSqrt();
+  const int s = static_cast<int>(5.0 * kRateHz);
+  Eigen::MatrixXd clean = Eigen::MatrixXd::Zero(s, 2);
+  for (int i = 0; i < s; ++i) {
+    const double tau = i / kRateHz - kFreeS;
+    if (tau < 0.0) continue;
+    const Eigen::Matrix2d turn =
+        inverse_root * Eigen::Rotation2Dd(0.25 * tau).toRotationMatrix() * root;
+    for (const ClosedFormMode* m : {&m1, &m2}) {
+      const Eigen::Vector2d shape = turn * Eigen::Vector2d(m->a0.real(), m->a1.real());
+      clean.row(i) += std::exp(m->phi(tau)).real() * shape.transpose();
+    }
+  }
+  DampedModesOptions with_mass;
+  with_mass.mass_metric = [&mass](double) { return Eigen::MatrixXd(mass); };
+  // errors[j][k]: mode j, k = 0 alpha with the metric, 1 alpha without, 2 f with, 3 f without.
+  std::vector<double> errors[2][4];
+  for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+    Eigen::MatrixXd x = clean;
+    add_noise(x, 20.0, seed);
+    const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, with_mass);
+    const DampedModesResult plain = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, {});
+    BOOST_REQUIRE_MESSAGE(r.status.ok, r.status.message);
+    BOOST_REQUIRE_MESSAGE(plain.status.ok, plain.status.message);
+    for (int j = 0; j < 2; ++j) {
+      const Errors e = track_errors(r, j, j == 0 ? m1 : m2, 2.6, 4.5);
+      const Errors w = track_errors(plain, j, j == 0 ? m1 : m2, 2.6, 4.5);
+      BOOST_TEST_MESSAGE("draw " << seed << ", mode " << j << ": alpha " << e.alpha_rel
+                                 << " with the mass metric, " << w.alpha_rel << " without; f "
+                                 << e.f_rel << ", " << w.f_rel);
+      for (const auto& [k, value] :
+           {std::pair{0, e.alpha_rel}, {1, w.alpha_rel}, {2, e.f_rel}, {3, w.f_rel}})
+        errors[j][k].push_back(value);
+    }
+  }
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return 0.5 * (v[(v.size() - 1) / 2] + v[v.size() / 2]);
+  };
+  // Measured medians: strong mode alpha 2.7 % (9.5 % without), f 0.2 % (0.7 %); weak mode alpha
+  // 7.9 % (9.3 % without), f 0.6 % (0.4 %): the correction carries the slope of the weak mode's
+  // shape splines, noisiest at the record's ends where that mode has decayed. (Draw 2 loses the
+  // weak mode with either reading: its fit keeps constant shapes.)
+  BOOST_CHECK_LE(median(errors[0][0]), 0.05);
+  BOOST_CHECK_LE(median(errors[0][0]), 0.5 * median(errors[0][1]));
+  BOOST_CHECK_LE(median(errors[0][2]), 0.005);
+  BOOST_CHECK_LE(median(errors[1][0]), 0.1);
+  BOOST_CHECK_LE(median(errors[1][0]), median(errors[1][1]));
+  BOOST_CHECK_LE(median(errors[1][2]), 0.01);
+  // A metric of the wrong size is refused before the fit.
+  DampedModesOptions wrong;
+  wrong.mass_metric = [](double) { return Eigen::MatrixXd::Identity(3, 3).eval(); };
+  BOOST_CHECK_THROW(fit_damped_modes(clean, kRateHz, 0.0, kOnsetS, wrong), std::invalid_argument);
 }
 
 BOOST_AUTO_TEST_CASE(close_modes_with_a_weak_one_at_20_db_within_one_percent) {

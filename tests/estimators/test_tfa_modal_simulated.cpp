@@ -498,11 +498,12 @@ BOOST_AUTO_TEST_CASE(a_rotating_stiffness_ellipse_is_followed_by_the_mode_shapes
 }
 
 BOOST_AUTO_TEST_CASE(a_phase_factor_keeps_a_turning_ellipse_in_the_amplitude_ratios) {
-  // `rotating` at 45 degrees, 20 dB, seed 1: with the default options the early frames are
-  // vouched for with the mode shapes' axis ~20 degrees off and k12 misses issue 7's 25 % by a hair
-  // (25.3 % over 2.6-4.5 s); the shapes' phases between joints (none in the truth, C = 0.01 K)
-  // trade with the frequency tracks. With changes of those phases penalized 10 times the
-  // amplitude ratios' (--shape-phase-factor 10) k12 is 14.6 % and k11, k22 stay within 10 %.
+  // `rotating` at 45 degrees, 20 dB, seed 1: the mode shapes turn. With the default options, the
+  // decay and frequency read as the modal coordinate's (docs/tfa_modal.md, "Modal amplitude"),
+  // issue 7's targets are met: k11 4.4 %, k12 18.6 %, k22 6.6 % over 2.6-4.5 s, c11 12.5 %. Read
+  // from the fitted exponent alone the strong mode's decay took the turn (alpha_1 -0.32 against
+  // -1.16 1/s early on): k12 25.3 %, c11 56 %. With changes of the phases between joints
+  // penalized 10 times the amplitude ratios' (--shape-phase-factor 10) k12 is 12.3 %.
   est::TfaOptions o = default_options();
   o.modes.shape_phase_factor = 10.0;
   const Case c = run_spec(spec_at("piovesan_posture_rotating", 45.0), 20.0, 1, o);
@@ -516,6 +517,11 @@ BOOST_AUTO_TEST_CASE(a_phase_factor_keeps_a_turning_ellipse_in_the_amplitude_rat
   plain.tfa = est::identify_tfa(c.sim.trial, default_options());
   BOOST_REQUIRE_MESSAGE(plain.tfa.status.ok, plain.tfa.status.message);
   BOOST_TEST_MESSAGE("  phase factor 1 (default):" << report(plain));
+  BOOST_CHECK_LE(percent_rms_error(plain, false, 0, 0, 2.6, 4.5), 10.0);
+  BOOST_CHECK_LE(percent_rms_error(plain, false, 1, 1, 2.6, 4.5), 10.0);
+  BOOST_CHECK_LE(percent_rms_error(plain, false, 0, 1, 2.6, 4.5), 25.0);
+  BOOST_CHECK_LE(percent_rms_error(plain, true, 0, 0, 2.6, 4.5), 25.0);
+  BOOST_CHECK_GE(k_valid_share(plain, 2.6, 4.5), 0.9);
   BOOST_CHECK_GT(percent_rms_error(plain, false, 0, 1, 2.6, 4.5),
                  percent_rms_error(c, false, 0, 1, 2.6, 4.5));
 }
