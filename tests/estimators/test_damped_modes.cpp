@@ -4,6 +4,7 @@
 #include <boost/test/unit_test.hpp>
 #include <cmath>
 #include <complex>
+#include <cstdint>
 #include <functional>
 #include <random>
 #include <stdexcept>
