@@ -15,12 +15,12 @@
 #include <stdexcept>
 #include <string>
 #include <tuple>
-#include <type_traits>
 #include <utility>
 
 #include "data/parallel.hpp"
 #include "estimators/cubic_bspline.hpp"
 #include "estimators/decimate.hpp"
+#include "estimators/differences.hpp"
 #include "estimators/effective_parameters.hpp"
 
 namespace stiffid::estimators {
@@ -705,17 +705,6 @@ bool lower_bic(const VpProblem& a, const Eigen::VectorXd& theta_a, const VpProbl
          bic(rss_a, dof_a) < bic(rss_b, dof_b);
 }
 
-// d/dt at sample i of a quantity x(i) sampled at t_s: central differences, one-sided at the ends
-// (x's units per s; zero for a single sample).
-template <class Sample>
-auto slope_at(Eigen::Index i, const Eigen::VectorXd& t_s, Sample&& x)
-    -> std::decay_t<decltype(x(i))> {
-  const Eigen::Index lo = std::max<Eigen::Index>(0, i - 1);
-  const Eigen::Index hi = std::min<Eigen::Index>(t_s.size() - 1, i + 1);
-  if (hi == lo) return x(lo) * 0.0;
-  return (x(hi) - x(lo)) / (t_s(hi) - t_s(lo));
-}
-
 // Orthonormal basis (C x C) whose first column is u / |u| (complex Householder completion).
 Eigen::MatrixXcd complete_basis(const Eigen::VectorXcd& u) {
   const Eigen::HouseholderQR<Eigen::MatrixXcd> qr(u);
@@ -1066,16 +1055,23 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   result.data = p.y;
   // The mass metric at the fitted samples and its slope (options.mass_metric), checked before
   // the fit.
+  const double dt_s = 1.0 / p.rate_hz;
   std::vector<Eigen::MatrixXd> metric, metric_dot;
   if (options.mass_metric) {
-    for (int i = 0; i < n; ++i) {
-      metric.push_back(options.mass_metric(p.t_s(i)));
-      if (metric.back().rows() != c || metric.back().cols() != c || !metric.back().allFinite())
-        throw std::invalid_argument("fit_damped_modes: mass_metric must give finite " +
-                                    std::to_string(c) + " x " + std::to_string(c) + " matrices");
+    metric = options.mass_metric(p.t_s);
+    Eigen::MatrixXd flat(n, c * c);  // row i: metric[i], column-major
+    bool sane = static_cast<int>(metric.size()) == n;
+    for (int i = 0; sane && i < n; ++i) {
+      sane = metric[i].rows() == c && metric[i].cols() == c && metric[i].allFinite();
+      if (sane) flat.row(i) = metric[i].reshaped().transpose();
     }
-    for (int i = 0; i < n; ++i)
-      metric_dot.push_back(slope_at(i, p.t_s, [&](Eigen::Index k) { return metric[k]; }));
+    if (!sane) {
+      throw std::invalid_argument("fit_damped_modes: mass_metric must give one finite " +
+                                  std::to_string(c) + " x " + std::to_string(c) +
+                                  " matrix per fitted time (" + std::to_string(n) + ")");
+    }
+    const Eigen::MatrixXd flat_dot = central_differences(flat, dt_s);
+    for (int i = 0; i < n; ++i) metric_dot.push_back(flat_dot.row(i).reshaped(c, c));
   }
 
   const UniformCubicBspline track(p.tau_s(n - 1), options.knot_spacing_s);
@@ -1692,11 +1688,11 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       }
       mt.alpha_per_s += d_alpha;
       mt.omega_rad_per_s += d_omega;
-      for (int i = 0; i < n; ++i) {
-        mt.alpha_dot_per_s2(i) += slope_at(i, p.t_s, [&](Eigen::Index k) { return d_alpha(k); });
-        mt.omega_dot_rad_per_s2(i) +=
-            slope_at(i, p.t_s, [&](Eigen::Index k) { return d_omega(k); });
-      }
+      Eigen::MatrixXd corrections(n, 2);
+      corrections << d_alpha, d_omega;
+      const Eigen::MatrixXd slopes_of_corrections = central_differences(corrections, dt_s);
+      mt.alpha_dot_per_s2 += slopes_of_corrections.col(0);
+      mt.omega_dot_rad_per_s2 += slopes_of_corrections.col(1);
       mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
     }
     mt.envelope.resize(n, c);

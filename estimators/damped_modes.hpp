@@ -68,14 +68,15 @@ struct DampedModesOptions {
                                       ///< joints, relative to that on the amplitude ratios
                                       ///< (> 0, dimensionless; 1: alike; docs/tfa_modal.md,
                                       ///< "Phase factor of the shape penalty")
-  /// Mass metric of the channels at time t_s (C x C, symmetric positive definite; the tfa
-  /// pipeline gives the arm's inertia M(theta_0(t)), kg m^2). Given, each mode's decay alpha_j
+  /// Mass metric of the channels at each of the fitted times t_s (one C x C matrix per time,
+  /// symmetric positive definite; the tfa pipeline gives the arm's inertia M(theta_0(t)), kg
+  /// m^2). Given, each mode's decay alpha_j
   /// and frequency omega_j are those of its modal coordinate, the mode's amplitude measured in
   /// this metric (q_j = |a_j(t)|_M, its phase the M-weighted mean of its channels'), not those
   /// of the fitted exponent alone: a mode shape that turns changes its amplitude along the
   /// constant part the fit holds fixed (docs/tfa_modal.md, "Modal amplitude"). Empty, or the
   /// sliding design (constant shapes in each window): the exponent's alpha_j, omega_j.
-  std::function<Eigen::MatrixXd(double t_s)> mass_metric;
+  std::function<std::vector<Eigen::MatrixXd>(const Eigen::VectorXd& t_s)> mass_metric;
   double track_roughness = -1.0;      ///< prior SD of second differences of the omega (rad/s)
                                       ///< and alpha (1/s) spline coefficients; < 0: from the
                                       ///< data over 0.003 .. 3 (continuation smooth -> rough),

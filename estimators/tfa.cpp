@@ -85,8 +85,8 @@ void identify_modal(TfaResult& r, const TfaOptions& options) {
   mo.modes = n;
   mo.skip_s = std::max(mo.skip_s, dev.free_start_s - dev.onset_s);
   if (!mo.mass_metric) {
-    mo.mass_metric = [&dev, &options](double t_s) {
-      return inertia_at(dev, options.arm, Eigen::VectorXd::Constant(1, t_s))[0];
+    mo.mass_metric = [&dev, &options](const Eigen::VectorXd& t_s) {
+      return inertia_at(dev, options.arm, t_s);
     };
   }
   // The noise window reaches back as far as the record allows (less a margin for the filter).

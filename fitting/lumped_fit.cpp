@@ -11,6 +11,7 @@
 #include <random>
 
 #include "data/text_input.hpp"
+#include "estimators/differences.hpp"
 #include "fitting/latin_hypercube.hpp"
 
 namespace stiffid::fitting {
@@ -148,17 +149,6 @@ class SegmentCost final : public ceres::CostFunction {
 
 double rms(const Eigen::Ref<const Eigen::MatrixXd>& a) {
   return std::sqrt(a.squaredNorm() / static_cast<double>(a.size()));
-}
-
-/// Central differences (one-sided at the ends) of each column, per second.
-Eigen::MatrixXd differentiate(const Eigen::MatrixXd& x, double dt_s) {
-  const Eigen::Index s = x.rows();
-  Eigen::MatrixXd d(s, x.cols());
-  for (Eigen::Index i = 0; i < s; ++i) {
-    const Eigen::Index a = std::max<Eigen::Index>(i - 1, 0), b = std::min(i + 1, s - 1);
-    d.row(i) = (x.row(b) - x.row(a)) / ((b - a) * dt_s);
-  }
-  return d;
 }
 
 /// Fastest rate of the model (1/s), for the automatic RK4 step (see LumpedFitOptions::substeps).
@@ -498,8 +488,8 @@ void set_parameters(LumpedFitResult& result, ceres::Problem& problem,
 std::map<std::string, StartRange> default_ranges(LumpedModel model, const Eigen::MatrixXd& u,
                                                  const Eigen::MatrixXd& y, double rate_hz) {
   const double dt = 1.0 / rate_hz;
-  const Eigen::MatrixXd v = differentiate(y, dt);
-  const Eigen::MatrixXd a = differentiate(v, dt);
+  const Eigen::MatrixXd v = estimators::central_differences(y, dt);
+  const Eigen::MatrixXd a = estimators::central_differences(v, dt);
   const double f = rms(u), x = rms(y), xd = rms(v), xdd = rms(a);
   const double x3 = rms(y.array().cube().matrix());
   auto box = [](double ref, double below, double above) {
@@ -543,7 +533,7 @@ LumpedFitResult fit_lumped(const Eigen::MatrixXd& u, const Eigen::MatrixXd& y, d
   FitData data{
       o.model,       o.hold, n,  state_size(o.model, n), theta_size(o.model, n),
       1.0 / rate_hz, &u,     &y, Eigen::VectorXd(n),     Eigen::VectorXd(state_size(o.model, n))};
-  const Eigen::MatrixXd velocity = differentiate(y, data.dt_s);
+  const Eigen::MatrixXd velocity = estimators::central_differences(y, data.dt_s);
   for (int j = 0; j < n; ++j) {
     data.output_weight(j) = 1.0 / rms(y.col(j));
     data.state_weight(j) = data.output_weight(j);

@@ -366,7 +366,9 @@ BOOST_AUTO_TEST_CASE(a_shape_turning_in_the_mass_metric_keeps_its_modal_decay_an
     }
   }
   DampedModesOptions with_mass;
-  with_mass.mass_metric = [&mass](double) { return Eigen::MatrixXd(mass); };
+  with_mass.mass_metric = [&mass](const Eigen::VectorXd& t_s) {
+    return std::vector<Eigen::MatrixXd>(t_s.size(), mass);
+  };
   // errors[j][k]: mode j, k = 0 alpha with the metric, 1 alpha without, 2 f with, 3 f without.
   std::vector<double> errors[2][4];
   for (std::uint64_t seed = 1; seed <= 8; ++seed) {
@@ -403,7 +405,9 @@ BOOST_AUTO_TEST_CASE(a_shape_turning_in_the_mass_metric_keeps_its_modal_decay_an
   BOOST_CHECK_LE(median(errors[1][2]), 0.01);
   // A metric of the wrong size is refused before the fit.
   DampedModesOptions wrong;
-  wrong.mass_metric = [](double) { return Eigen::MatrixXd::Identity(3, 3).eval(); };
+  wrong.mass_metric = [](const Eigen::VectorXd& t_s) {
+    return std::vector<Eigen::MatrixXd>(t_s.size(), Eigen::MatrixXd::Identity(3, 3));
+  };
   BOOST_CHECK_THROW(fit_damped_modes(clean, kRateHz, 0.0, kOnsetS, wrong), std::invalid_argument);
 }
 
