@@ -22,12 +22,13 @@
 #include "estimators/decimate.hpp"
 #include "estimators/differences.hpp"
 #include "estimators/effective_parameters.hpp"
+#include "estimators/normal_equations.hpp"
 
 namespace stiffid::estimators {
 namespace {
 
 using Complex = std::complex<double>;
-using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using RowMajor = RowMajorMatrix;  // normal_equations.hpp
 
 // The most by which the whitened energies of the modes' parts of a fit may add up to more than
 // the energy of their sum before the modes count as cancelling (one mode explained by two
@@ -448,19 +449,47 @@ class VpProblem {
   mutable Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr_;
 };
 
+// The variable-projection problem as Ceres sees it: compressed to p + 1 residuals
+// (compress_least_squares) with the same cost, gradient and Gauss-Newton matrix, so the same
+// Levenberg-Marquardt steps (DENSE_NORMAL_CHOLESKY forms J^T J anyway), while Ceres's linear
+// algebra, copies and checks run on p + 1 rows instead of the ~1000 of the record
+// (docs/tfa_modal.md, "Speed"). Without a Jacobian only the cost is asked for: |r| in one entry.
 class VpCost final : public ceres::CostFunction {
  public:
-  explicit VpCost(const VpProblem& problem) : problem_(problem) {
-    set_num_residuals(problem.residuals());
+  explicit VpCost(const VpProblem& problem)
+      : problem_(problem),
+        residual_(problem.residuals()),
+        jacobian_(problem.residuals(), problem.parameters()) {
+    set_num_residuals(problem.parameters() + 1);
     mutable_parameter_block_sizes()->push_back(problem.parameters());
   }
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    return problem_.evaluate(parameters[0], residuals, jacobians ? jacobians[0] : nullptr, nullptr);
+    const int np = problem_.parameters();
+    Eigen::Map<Eigen::VectorXd> out(residuals, np + 1);
+    const bool with_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
+    if (!problem_.evaluate(parameters[0], residual_.data(),
+                           with_jacobian ? jacobian_.data() : nullptr, nullptr))
+      return false;
+    out.setZero();
+    if (!with_jacobian) {
+      out(np) = residual_.norm();
+      return true;
+    }
+    if (!compress_least_squares(jacobian_, residual_, compressed_)) return false;
+    out.head(np) = compressed_.c;
+    out(np) = compressed_.s;
+    Eigen::Map<RowMajor> jac(jacobians[0], np + 1, np);
+    jac.topRows(np) = compressed_.r;
+    jac.row(np).setZero();
+    return true;
   }
 
  private:
   const VpProblem& problem_;
+  mutable Eigen::VectorXd residual_;
+  mutable RowMajor jacobian_;
+  mutable CompressedLeastSquares compressed_;
 };
 
 struct StageOutcome {
