@@ -824,11 +824,9 @@ Eigen::MatrixXd posterior_covariance(const VpProblem& problem, const Eigen::Vect
   const int rows = problem.data_rows();
   const double dof = std::max(1, rows - problem.linear() - problem.parameters());
   const double chi2 = residual.head(rows).squaredNorm() / dof;
-  Eigen::MatrixXd info = Eigen::MatrixXd::Zero(problem.parameters(), problem.parameters());
-  info.selfadjointView<Eigen::Lower>().rankUpdate(jacobian.transpose());  // J^T J, one half
-  info.triangularView<Eigen::StrictlyUpper>() = info.transpose();
   return std::max(1.0, chi2) *
-         Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(info).pseudoInverse();
+         Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(normal_matrix(jacobian))
+             .pseudoInverse();
 }
 
 // Both designs' last step: the validity checks the residual cannot make, then the modes in

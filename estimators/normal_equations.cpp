@@ -7,14 +7,19 @@
 
 namespace stiffid::estimators {
 
+Eigen::MatrixXd normal_matrix(const Eigen::Ref<const RowMajorMatrix>& jacobian) {
+  Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(jacobian.cols(), jacobian.cols());
+  normal.selfadjointView<Eigen::Lower>().rankUpdate(jacobian.transpose());
+  normal.triangularView<Eigen::StrictlyUpper>() = normal.transpose();
+  return normal;
+}
+
 bool compress_least_squares(const Eigen::Ref<const RowMajorMatrix>& jacobian,
                             const Eigen::Ref<const Eigen::VectorXd>& residual,
                             CompressedLeastSquares& out) {
   const Eigen::Index p = jacobian.cols();
   if (!jacobian.allFinite() || !residual.allFinite()) return false;
-  Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(p, p);
-  normal.selfadjointView<Eigen::Lower>().rankUpdate(jacobian.transpose());
-  normal.triangularView<Eigen::StrictlyUpper>() = normal.transpose();
+  Eigen::MatrixXd normal = normal_matrix(jacobian);
   // S = diag(N_ii)^-1/2, a zero column left at 1.
   const Eigen::VectorXd scale =
       normal.diagonal().unaryExpr([](double v) { return v > 0.0 ? 1.0 / std::sqrt(v) : 1.0; });

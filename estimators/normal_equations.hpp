@@ -8,6 +8,10 @@ namespace stiffid::estimators {
 
 using RowMajorMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
+/// J^T J of `jacobian` (p x p, both triangles), from a symmetric rank update (half the products
+/// of J^T * J); the jacobian's units squared.
+Eigen::MatrixXd normal_matrix(const Eigen::Ref<const RowMajorMatrix>& jacobian);
+
 /// The model |residual + jacobian d|^2 (m rows, p columns; any units) in p + 1 rows: the factor
 /// `r` (p x p) and `c` (p), `s` with R^T R = J^T J, R^T c = J^T residual and |c|^2 + s^2 =
 /// |residual|^2, so the cost, gradient and Gauss-Newton matrix (and every Levenberg-Marquardt

@@ -97,7 +97,7 @@ BOOST_AUTO_TEST_CASE(a_residual_in_the_range_leaves_nothing_outside) {
   // r = -J x exactly: the Gauss-Newton step removes it all; s is only round-off.
   const RowMajorMatrix j = scaled_jacobian(200, 6, 5);
   Eigen::VectorXd x(6);
-  x << 1e6, -2e5, 3e3, 1.0, -5e-3, 7e-6;  // each column's contribution of order 1
+  x << 1e6, -2e5, 3e3, 1.0, -5e-3, 7e-6;  // each column's contribution between 1 and ~200
   const Eigen::VectorXd r = -(j * x);
   CompressedLeastSquares z;
   BOOST_REQUIRE(compress_least_squares(j, r, z));
