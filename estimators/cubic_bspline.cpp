@@ -35,6 +35,18 @@ double piece_derivative(int r, double u) {  // d/du
       return u * u / 2.0;
   }
 }
+double piece_second_derivative(int r, double u) {  // d^2/du^2
+  switch (r) {
+    case 0:
+      return 1 - u;
+    case 1:
+      return 3 * u - 2;
+    case 2:
+      return -3 * u + 1;
+    default:
+      return u;
+  }
+}
 double piece_integral(int r, double u) {  // int_0^u piece(r, v) dv
   const double u2 = u * u, u3 = u2 * u, u4 = u3 * u;
   switch (r) {
@@ -85,6 +97,19 @@ Eigen::MatrixXd UniformCubicBspline::first_derivatives(
     double u;
     locate(t_s(i), s, u);
     for (int r = 0; r < 4; ++r) b(i, s + r) = piece_derivative(r, u) / spacing_s_;
+  }
+  return b;
+}
+
+Eigen::MatrixXd UniformCubicBspline::second_derivatives(
+    const Eigen::Ref<const Eigen::VectorXd>& t_s) const {
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(t_s.size(), size());
+  const double scale = 1.0 / (spacing_s_ * spacing_s_);
+  for (Eigen::Index i = 0; i < t_s.size(); ++i) {
+    int s;
+    double u;
+    locate(t_s(i), s, u);
+    for (int r = 0; r < 4; ++r) b(i, s + r) = piece_second_derivative(r, u) * scale;
   }
   return b;
 }

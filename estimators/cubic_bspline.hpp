@@ -26,6 +26,8 @@ class UniformCubicBspline {
   Eigen::MatrixXd values(const Eigen::Ref<const Eigen::VectorXd>& t_s) const;
   /// d/dt B_m(t_s): (T x size), 1/s.
   Eigen::MatrixXd first_derivatives(const Eigen::Ref<const Eigen::VectorXd>& t_s) const;
+  /// d^2/dt^2 B_m(t_s): (T x size), 1/s^2 (piecewise linear).
+  Eigen::MatrixXd second_derivatives(const Eigen::Ref<const Eigen::VectorXd>& t_s) const;
   /// Running integrals int_0^t B_m(tau) dtau: (T x size), s.
   Eigen::MatrixXd integrals(const Eigen::Ref<const Eigen::VectorXd>& t_s) const;
   /// Second-difference operator on the coefficients ((size - 2) x size): rows c_{m-1} - 2 c_m +

@@ -1,3 +1,4 @@
+#include <Eigen/QR>
 #include <boost/test/unit_test.hpp>
 #include <cmath>
 
@@ -42,6 +43,26 @@ BOOST_AUTO_TEST_CASE(running_integrals_match_quadrature_and_derivatives_match_di
   const Eigen::MatrixXd numeric =
       (spline.values(t.array() + e) - spline.values(t.array() - e)) / (2.0 * e);
   BOOST_CHECK_SMALL((spline.first_derivatives(t) - numeric).cwiseAbs().maxCoeff(), 1e-6);
+  // Second derivatives: central differences of the first derivatives (exact on each span's
+  // quadratic pieces away from the knots; this grid keeps 2e-3 s from them).
+  const Eigen::VectorXd off = (Eigen::VectorXd::LinSpaced(10, 0.0, 0.9).array() + 0.052).matrix();
+  const Eigen::MatrixXd numeric2 =
+      (spline.first_derivatives(off.array() + e) - spline.first_derivatives(off.array() - e)) /
+      (2.0 * e);
+  BOOST_CHECK_SMALL((spline.second_derivatives(off) - numeric2).cwiseAbs().maxCoeff(), 1e-6);
+}
+
+BOOST_AUTO_TEST_CASE(second_derivatives_of_a_represented_cubic_are_exact) {
+  // The cubic p(t) = 2 - t + 3 t^2 - 4 t^3 lies in the span of the basis: coefficients from least
+  // squares on its values, then p''(t) = 6 - 24 t exactly (to round-off), at knots too.
+  const UniformCubicBspline spline(2.0, 0.25);
+  const Eigen::VectorXd grid = Eigen::VectorXd::LinSpaced(81, 0.0, 2.0);
+  const Eigen::VectorXd p =
+      (2.0 - grid.array() + 3.0 * grid.array().square() - 4.0 * grid.array().cube()).matrix();
+  const Eigen::VectorXd coef = spline.values(grid).colPivHouseholderQr().solve(p);
+  const Eigen::VectorXd t = Eigen::VectorXd::LinSpaced(9, 0.0, 2.0);  // the knots
+  const Eigen::VectorXd exact = (6.0 - 24.0 * t.array()).matrix();
+  BOOST_CHECK_SMALL((spline.second_derivatives(t) * coef - exact).cwiseAbs().maxCoeff(), 1e-9);
 }
 
 BOOST_AUTO_TEST_CASE(difference_operators_vanish_on_constant_and_linear_coefficients) {
