@@ -5,7 +5,8 @@
 //
 //   stiffid tfa TRIAL.csv --angles th1,th2 --onset 2.5|auto [--forces fx,fy] [--fs HZ]
 //               [--method modal|spectrogram] [--decimate-hz 200] [--knots-s 0.1]
-//               [--shape-knots-s 0.5] [--baseline BASE.csv] [--subject SPEC.json]
+//               [--shape-knots-s 0.5] [--decay-tracks alpha|gamma|best]
+//               [--baseline BASE.csv] [--subject SPEC.json]
 //               [--window kaiser:3|hann|gaussian:S] [--window-s 0.75] [--hop-s 0.0025]
 //               [--fft-size N] [--fmin 0.5] [--fmax 20] [--jump-penalty 2] [--max-jump-hz 0.5]
 //               [--chirp true|false] [--anr-floor-db 100] [--sg-window-s 0.25] [--sg-order 3]
@@ -30,7 +31,10 @@
 //   onset), "K_valid" (per time: every mode valid, eta^2 > Gamma^2, K positive definite and C
 //   positive semidefinite; modal).
 // For --method modal the spectrogram options are not used; "options" lists the modal ones and the
-// data-chosen weights, and f_ridge_hz / alpha_ridge_per_s repeat the fitted tracks.
+// data-chosen weights, and f_ridge_hz / alpha_ridge_per_s repeat the fitted tracks;
+// --decay-tracks alpha|gamma|best (default alpha) chooses the decay splines, options.decay_tracks
+// says which the kept fit has and "decay_tracks_residual_rms_whitened" {alpha, gamma} both fits'
+// residuals with best (else null).
 // --chirp true (spectrogram method, the default): frame fits whose modes' lambdas change linearly
 // through the window (estimators/ridge.hpp, docs/tfa.md "Chirped frame fits"); --chirp false: the
 // stationary frame model.
@@ -61,7 +65,7 @@ namespace stiffid::apps {
 namespace {
 
 struct TfaCommandOptions {
-  std::string design = "whole", mapping = "eq48";
+  std::string design = "whole", mapping = "eq48", decay_tracks = "alpha";
   std::string trial_path, angles, forces, onset, method = "modal", baseline_path, subject_path,
                                                  window = "kaiser:3", output_path, spectrogram_path;
   double sample_rate_hz = 0.0;  // --fs, Hz: for files without a t column (0: from t)
@@ -190,6 +194,7 @@ void run(TfaCommandOptions cli) {
   o.modes.design = estimators::parse_modal_design(cli.design);
   o.modes.shape_refit = !cli.no_shape_refit;
   o.modes.second_order = !cli.no_second_order;
+  o.modes.decay_tracks = estimators::parse_decay_tracks(cli.decay_tracks);
   o.modal_parameters.mapping = estimators::parse_modal_mapping(cli.mapping);
   if (o.modal_parameters.mapping != estimators::ModalMapping::paper_eq48 &&
       o.method != estimators::TfaMethod::modal) {
@@ -245,41 +250,52 @@ void run(TfaCommandOptions cli) {
                     {"decimation", r.decimation}};
   if (o.method == estimators::TfaMethod::modal) {
     const estimators::DampedModesOptions& mo = o.modes;
-    out["options"].update({{"decimate_hz", mo.decimate_hz},
-                           {"knots_s", mo.knot_spacing_s},
-                           {"shape_knots_s", mo.shape_knot_spacing_s},
-                           {"skip_s", mo.skip_s},
-                           {"noise_window_s", mo.noise_window_s},
-                           {"init_window_s", mo.init_window_s},
-                           {"anr_threshold_db", mo.anr_threshold_db},
-                           {"max_frequency_sd_hz", mo.max_frequency_sd_hz},
-                           {"max_mode_to_data_db", mo.max_mode_to_data_db},
-                           {"min_mode_separation", mo.min_mode_separation},
-                           {"shape_weight", r.modes.shape_weight},
-                           {"shape_phase_factor", mo.shape_phase_factor},
-                           {"track_roughness", r.modes.track_roughness},
-                           {"shape_weight_from_data", mo.shape_weight < 0.0},
-                           {"track_roughness_from_data", mo.track_roughness < 0.0},
-                           {"local_roughness_dof", mo.local_roughness_dof},
-                           {"lost_track_time_s", mo.lost_track_time_s},
-                           {"decay_tie", r.modes.decay_tie},
-                           {"decay_tie_from_data", mo.decay_tie < 0.0},
-                           {"frequency_tie", r.modes.frequency_tie},
-                           {"frequency_tie_from_data", mo.frequency_tie < 0.0},
-                           {"design", estimators::to_string(mo.design)},
-                           {"sliding_window_s", mo.sliding_window_s},
-                           {"real_terms", r.modes.real_terms.size()},
-                           {"real_terms_from_data", mo.real_terms < 0},
-                           {"offsets", mo.offsets && mo.design == estimators::ModalDesign::whole},
-                           {"second_order", r.modes.second_order_mode >= 0},
-                           {"shape_refit", r.modes.shape_refit},
-                           {"mapping", estimators::to_string(o.modal_parameters.mapping)}});
+    out["options"].update(
+        {{"decimate_hz", mo.decimate_hz},
+         {"knots_s", mo.knot_spacing_s},
+         {"shape_knots_s", mo.shape_knot_spacing_s},
+         {"skip_s", mo.skip_s},
+         {"noise_window_s", mo.noise_window_s},
+         {"init_window_s", mo.init_window_s},
+         {"anr_threshold_db", mo.anr_threshold_db},
+         {"max_frequency_sd_hz", mo.max_frequency_sd_hz},
+         {"max_mode_to_data_db", mo.max_mode_to_data_db},
+         {"min_mode_separation", mo.min_mode_separation},
+         {"shape_weight", r.modes.shape_weight},
+         {"shape_phase_factor", mo.shape_phase_factor},
+         {"track_roughness", r.modes.track_roughness},
+         {"shape_weight_from_data", mo.shape_weight < 0.0},
+         {"track_roughness_from_data", mo.track_roughness < 0.0},
+         {"local_roughness_dof", mo.local_roughness_dof},
+         {"lost_track_time_s", mo.lost_track_time_s},
+         {"decay_tie", r.modes.decay_tie},
+         {"decay_tie_from_data", mo.decay_tie < 0.0},
+         {"frequency_tie", r.modes.frequency_tie},
+         {"frequency_tie_from_data", mo.frequency_tie < 0.0},
+         {"design", estimators::to_string(mo.design)},
+         {"decay_tracks", estimators::to_string(r.modes.decay_tracks)},
+         {"decay_tracks_from_data", mo.decay_tracks == estimators::DecayTracks::best &&
+                                        mo.design == estimators::ModalDesign::whole},
+         {"sliding_window_s", mo.sliding_window_s},
+         {"real_terms", r.modes.real_terms.size()},
+         {"real_terms_from_data", mo.real_terms < 0},
+         {"offsets", mo.offsets && mo.design == estimators::ModalDesign::whole},
+         {"second_order", r.modes.second_order_mode >= 0},
+         {"shape_refit", r.modes.shape_refit},
+         {"mapping", estimators::to_string(o.modal_parameters.mapping)}});
     // The roughness at each knot when it varies along the record (null: one roughness).
     out["track_roughness_local"] = r.modes.roughness_sd.size() == 0
                                        ? nlohmann::json(nullptr)
                                        : nlohmann::json{{"t_s", series(r.modes.roughness_t_s)},
                                                         {"sd", series(r.modes.roughness_sd)}};
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
+    // With --decay-tracks best: both fits' residuals (null: that fit failed); else null.
+    out["decay_tracks_residual_rms_whitened"] =
+        std::isnan(r.modes.alpha_residual_rms_whitened) &&
+                std::isnan(r.modes.gamma_residual_rms_whitened)
+            ? nlohmann::json(nullptr)
+            : nlohmann::json{{"alpha", r.modes.alpha_residual_rms_whitened},
+                             {"gamma", r.modes.gamma_residual_rms_whitened}};
     out["converged"] = r.modes.converged;
     out["iterations"] = r.modes.iterations;
     std::vector<double> ratios, frequency_ratios;
@@ -485,6 +501,13 @@ void add_tfa_command(CLI::App& app) {
   sub->add_flag("--no-shape-refit", cli->no_shape_refit,
                 "modal: do not refit smoother tracks with varying mode shapes when the "
                 "constant-shape fit chose rough tracks (docs/tfa_modal.md, \"Shape refit\")");
+  sub->add_option("--decay-tracks", cli->decay_tracks,
+                  "modal, --design whole: what the decay splines are: alpha (the envelope decay "
+                  "alpha_j(t), 1/s), gamma (the modal damping rates Gamma_j(t), 1/s; alpha_j = "
+                  "-Gamma_j - omega_j' / (2 omega_j) follows from the frequency track) or best "
+                  "(both fits, concurrently; the lower whitened residual kept; docs/tfa_modal.md, "
+                  "\"Damping tracks\")")
+      ->capture_default_str();
   sub->add_flag("--no-second-order", cli->no_second_order,
                 "modal: do not offer the strongest mode's quadratic distortion terms (docs/"
                 "tfa_modal.md, \"Quadratic distortion of the strongest mode\")");

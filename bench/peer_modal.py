@@ -86,7 +86,7 @@ OPTIONS = dict(decimate_hz=200.0, skip_s=0.025, noise_window_s=1.0, knot_spacing
                shape_knot_spacing_s=0.5, shape_weight=-1.0, track_roughness=-1.0,
                local_roughness_dof=1.0, decay_tie=0.0, init_window_s=0.5, anr_threshold_db=0.0,
                max_frequency_sd_hz=0.1, max_mode_to_data_db=20.0, min_mode_separation=0.01,
-               max_iterations=100, lost_track_time_s=0.3, mapping="eq48")
+               max_iterations=100, lost_track_time_s=0.3, mapping="eq48", damping_tracks=False)
 PRE_ONSET_S, PULSE_S = 0.2, 0.02
 ROUGHNESS_GRID = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 TIE_GRID = (0.3, 0.1, 0.03, 0.01, 0.003)
@@ -152,6 +152,10 @@ class Bspline:
         s, u = self._locate(t)
         return self._scatter(s, [-(1 - u) ** 2 / 2, (3 * u ** 2 - 4 * u) / 2,
                                  (-3 * u ** 2 + 2 * u + 1) / 2, u ** 2 / 2]) / self.h
+
+    def second_derivatives(self, t):
+        s, u = self._locate(t)
+        return self._scatter(s, [1 - u, 3 * u - 2, -3 * u + 1, u]) / self.h ** 2
 
     def integrals(self, t):
         s, u = self._locate(t)
@@ -255,9 +259,13 @@ class VpProblem:
     theta: the track coefficients [alpha_0, omega_0, alpha_1, ...] (M each), then rho_1 ..
     rho_{n-1} when tied."""
 
-    def __init__(self, p, modes, ig, functions, terms, pairs, weight, prior, tie=DecayTie(),
+    def __init__(self, p, modes, ig, wv, functions, terms, pairs, weight, prior, tie=DecayTie(),
                  so_mode=-1):
+        """wv: the track basis at the samples (damping tracks: the decay coefficients are -Gamma_j
+        and Re Phi_j = int(-Gamma_j) - ln(omega_j) / 2), or None (they are alpha_j)."""
         self.p, self.modes, self.ig, self.prior, self.tie = p, modes, ig, prior, tie
+        self.wv = wv
+        self.wvr = None if wv is None else np.repeat(wv, p["y"].shape[1], axis=0)  # (N C x M)
         self.so_mode = so_mode  # mode whose square (exp(2 Re Phi), exp(2 Phi)) is fitted, or -1
         self.n, self.c = p["y"].shape
         self.m = ig.shape[1]
@@ -311,6 +319,12 @@ class VpProblem:
         th = theta[:self.tp].reshape(self.modes, 2, self.m)
         re = self.ig @ th[:, 0, :].T
         im = self.ig @ th[:, 1, :].T
+        if self.wv is not None:
+            omega = self.wv @ th[:, 1, :].T
+            if not (omega > 0).all():
+                return None
+            re = re - 0.5 * np.log(omega)
+            self.half_inverse_omega = -0.5 / omega  # (N x modes) d Re Phi / d omega
         if not (np.isfinite(re).all() and np.isfinite(im).all()) or np.abs(re).max() > 600.0:
             return None
         return np.exp(re + 1j * im)  # (N x modes)
@@ -356,6 +370,8 @@ class VpProblem:
             self._ok = False
             return False
         self.e, self.beta, self.q = e, beta, q[:, :rank]
+        if self.wv is not None:
+            self.half_inverse_omega_at = self.half_inverse_omega
         self.resid = np.concatenate([self.b - a @ beta, self.prior @ theta[:self.tp],
                                      self.tie_residual(theta)])
         return True
@@ -384,6 +400,9 @@ class VpProblem:
         blocks = d[:self.rd, :self.tp].reshape(self.rd, self.modes, 2, self.m)
         blocks[:, :, 0, :] = self.igr[:, None, :] * y.real[:, :, None]
         blocks[:, :, 1, :] = -self.igr[:, None, :] * y.imag[:, :, None]
+        if self.wv is not None:  # omega also moves the amplitude omega^-1/2
+            hio = np.repeat(self.half_inverse_omega_at, self.c, axis=0)  # (N C x modes)
+            blocks[:, :, 1, :] += self.wvr[:, None, :] * (hio * y.real)[:, :, None]
         if self.so_mode >= 0:  # the square moves with mode J's decay and frequency coefficients
             ej = self.e[:, self.so_mode]
             dc, e2 = np.abs(ej) ** 2, ej * ej
@@ -392,6 +411,9 @@ class VpProblem:
             y2 = (2.0 * np.outer(e2, b[:, 1] + 1j * b[:, 2])).ravel()
             blocks[:, self.so_mode, 0, :] += self.igr * (ydc + y2.real)[:, None]
             blocks[:, self.so_mode, 1, :] += -self.igr * y2.imag[:, None]
+            if self.wv is not None:
+                hio = np.repeat(self.half_inverse_omega_at[:, self.so_mode], self.c)
+                blocks[:, self.so_mode, 1, :] += self.wvr * (hio * (ydc + y2.real))[:, None]
         d[:, :self.tp] -= self.q @ (self.q.T @ d[:, :self.tp])
         m = self.m
         tie = np.zeros((self.tied * m, self.np))
@@ -563,6 +585,8 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
     track = Bspline(p["tau_s"][-1], o["knot_spacing_s"])
     m = track.size
     ig = track.integrals(p["tau_s"])
+    # Damping tracks (--decay-tracks gamma): the decay splines are -Gamma_j (damped_modes.hpp).
+    wv = track.values(p["tau_s"]) if o["damping_tracks"] else None
     theta = start_tracks(p, track, start, o, modes)
     cold = theta.copy()  # the start tracks, the continuation's second start from its third step
 
@@ -573,7 +597,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
     # start tracks) is offered its square (the arm's quadratic distortion) after the smoothest fit.
     so_offer, so = -1, [-1]
     if o.get("second_order", True):
-        probe0 = VpProblem(p, modes, ig, constant, terms, [], 0.0, prior_rows(track, modes, grid[0]))
+        probe0 = VpProblem(p, modes, ig, wv, constant, terms, [], 0.0, prior_rows(track, modes, grid[0]))
         if probe0.evaluate(theta):
             b0 = probe0.beta
             so_offer = int(np.argmax([np.linalg.norm(b0[2 * j * c:2 * (j + 1) * c])
@@ -629,7 +653,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
         """Fits one candidate from start (with restart, also from the start tracks, the lower
         cost kept); taken (fit) when accept(rss, dof, price) says so; False when it is not
         usable, spurious (a usable one goes to skipped[0]) or not taken."""
-        problem = VpProblem(p, modes, ig, design["functions"], design["terms"], design["pairs"],
+        problem = VpProblem(p, modes, ig, wv, design["functions"], design["terms"], design["pairs"],
                             design["weight"], prior_rows(track, modes, roughness), tie, so[0])
         candidate, usable, conv, nfev = solve(problem, start, o["max_iterations"])
         res["iterations"] += nfev
@@ -685,7 +709,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
                     varying.append((j, basis[:, dcol], 1 + q))
         d = dict(functions=functions, terms=varying, pairs=pairs, weight=o["shape_weight"])
         if d["weight"] < 0:
-            probe = VpProblem(p, modes, ig, functions, varying, pairs, 1.0,
+            probe = VpProblem(p, modes, ig, wv, functions, varying, pairs, 1.0,
                               prior_rows(track, modes, roughness), fitted.tie, fitted.so_mode)
             d["weight"] = choose_shape_weight(probe, at, p)
         return d
@@ -753,7 +777,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
             candidate = fit["theta"]
             sd = em_sd(candidate, scale)
             for sweep in range(1, 11):  # sd stays the last fit's SDs when the sweeps end
-                problem = VpProblem(p, modes, ig, design["functions"], design["terms"],
+                problem = VpProblem(p, modes, ig, wv, design["functions"], design["terms"],
                                     design["pairs"], design["weight"], prior_rows(track, modes, sd),
                                     tie, so[0])
                 candidate, usable, conv, nfev = solve(problem, candidate, o["max_iterations"])
@@ -781,7 +805,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
 
     if shapes:
         d = shape_design(final, theta, roughness_sd)
-        stage2 = VpProblem(p, modes, ig, d["functions"], d["terms"], d["pairs"], d["weight"],
+        stage2 = VpProblem(p, modes, ig, wv, d["functions"], d["terms"], d["pairs"], d["weight"],
                            prior_rows(track, modes, roughness_sd), tie, so[0])
         theta2, usable, conv, nfev = solve(stage2, theta, o["max_iterations"])
         res["iterations"] += nfev
@@ -800,7 +824,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
     if (o.get("shape_refit", True) and shape is not None and o["shape_weight"] < 0
             and len(grid) > 1 and tie.sd == 0 and smoothest is not None
             and uniform_roughness > grid[0]):
-        base = VpProblem(p, modes, ig, constant, terms, [], 0.0, prior_rows(track, modes, grid[0]),
+        base = VpProblem(p, modes, ig, wv, constant, terms, [], 0.0, prior_rows(track, modes, grid[0]),
                          DecayTie(), so[0])
         design.update(shape_design(base, smoothest, grid[0]))
         first = (final, theta, converged)
@@ -818,11 +842,11 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
         take = False
         if fit["problem"] is not None:
             prior = prior_rows(track, modes, refit_roughness)
-            probe = VpProblem(p, modes, ig, design["functions"], design["terms"], design["pairs"],
+            probe = VpProblem(p, modes, ig, wv, design["functions"], design["terms"], design["pairs"],
                               1.0, prior, tie, so[0])
             w = choose_shape_weight(probe, fit["theta"], p)
             if w != design["weight"]:
-                again = VpProblem(p, modes, ig, design["functions"], design["terms"],
+                again = VpProblem(p, modes, ig, wv, design["functions"], design["terms"],
                                   design["pairs"], w, prior, tie, so[0])
                 theta2, usable, conv, nfev = solve(again, fit["theta"], o["max_iterations"])
                 res["iterations"] += nfev
@@ -858,6 +882,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
     covariance = max(1.0, chi2) * np.linalg.pinv(jac.T @ jac)
 
     values, slopes = track_values, track.first_derivatives(p["tau_s"])
+    curvatures = track.second_derivatives(p["tau_s"])
     functions, function_slopes = final.functions, np.zeros_like(final.functions)
     if shape is not None:
         function_slopes = np.hstack([np.zeros((n, 1)), shape.first_derivatives(p["tau_s"])])
@@ -874,9 +899,16 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
         mt = dict(alpha=values @ ca, omega=values @ cw, alpha_dot=slopes @ ca, omega_dot=slopes @ cw)
         mt["decay_ratio"] = float(theta[2 * modes * m + j - 1]) if j > 0 and tie.sd > 0 else 1.0
         mt["f"] = mt["omega"] / (2 * np.pi)
-        cov_a = covariance[2 * j * m:(2 * j + 1) * m, 2 * j * m:(2 * j + 1) * m]
-        cov_w = covariance[(2 * j + 1) * m:(2 * j + 2) * m, (2 * j + 1) * m:(2 * j + 2) * m]
-        mt["alpha_sd"] = np.sqrt(np.sum((values @ cov_a) * values, axis=1))
+        cov_aw = covariance[2 * j * m:(2 * j + 2) * m, 2 * j * m:(2 * j + 2) * m]
+        cov_w = cov_aw[m:, m:]
+        gradient = np.hstack([values, np.zeros_like(values)])  # d alpha / d (ca, cw)
+        if wv is not None:  # alpha = a - omega' / (2 omega), a = -Gamma the spline
+            w, w_dot = mt["omega"], mt["omega_dot"]
+            w_ddot = curvatures @ cw
+            mt["alpha"] = mt["alpha"] - w_dot / (2 * w)
+            mt["alpha_dot"] = mt["alpha_dot"] - (w_ddot / (2 * w) - w_dot ** 2 / (2 * w ** 2))
+            gradient[:, m:] = -(slopes / (2 * w)[:, None] - values * (w_dot / (2 * w ** 2))[:, None])
+        mt["alpha_sd"] = np.sqrt(np.sum((gradient @ cov_aw) * gradient, axis=1))
         mt["f_sd"] = np.sqrt(np.sum((values @ cov_w) * values, axis=1)) / (2 * np.pi)
         sel = final.t_modes == j
         cols_j = final.function_columns(j)
@@ -898,7 +930,7 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
             mt["alpha_dot"] = mt["alpha_dot"] + grad(d_alpha)
             mt["omega_dot"] = mt["omega_dot"] + grad(d_omega)
             mt["f"] = mt["omega"] / (2 * np.pi)
-        growth, phase_integral = ig @ ca, ig @ cw
+        growth, phase_integral = np.log(np.abs(e[:, j])), ig @ cw  # Re Phi_j, Im Phi_j
         mt["envelope"] = np.abs(a) * np.exp(growth)[:, None]
         mt["phase"] = np.unwrap(np.angle(a), axis=0) + phase_integral[:, None]
         power = np.abs(a) ** 2
@@ -1126,7 +1158,8 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
                        "decay_tie": fit["decay_tie"],
                        "decay_tie_from_data": OPTIONS["decay_tie"] < 0,
                        "shape_refit": bool(fit["shape_refit"]),
-                       "mapping": OPTIONS["mapping"]},
+                       "mapping": OPTIONS["mapping"],
+                       "decay_tracks": "gamma" if OPTIONS["damping_tracks"] else "alpha"},
            "track_roughness_local": (None if fit["roughness_sd"] is None else
                                      {"t_s": series(fit["roughness_t_s"]),
                                       "sd": series(fit["roughness_sd"])}),
@@ -1170,8 +1203,11 @@ def main():
     ap.add_argument("--make-trial")
     ap.add_argument("--decay-tie", type=float, default=OPTIONS["decay_tie"],
                     help="as stiffid's --decay-tie: 0 no tie (default), < 0 from the data")
+    ap.add_argument("--decay-tracks", choices=("alpha", "gamma"), default="alpha",
+                    help="as stiffid's --decay-tracks")
     a = ap.parse_args()
     OPTIONS["decay_tie"] = a.decay_tie
+    OPTIONS["damping_tracks"] = a.decay_tracks == "gamma"
     if a.make_trial:
         make_trial(a.make_trial)
         return

@@ -176,14 +176,18 @@ using TrackTies = std::array<TrackTie, 2>;  // the decay tie, the frequency tie
 // (3 C).
 class VpProblem {
  public:
+  // `track_values` (N x M), the track basis at the samples: given, the decay coefficients are
+  // the modal damping -Gamma_j and Re Phi_j = int(-Gamma_j) - ln(omega_j) / 2
+  // (DecayTracks::gamma); empty, they are alpha_j and Re Phi_j = int alpha_j.
   VpProblem(const Prepared& p, int modes, const Eigen::MatrixXd& phase_integrals,
-            const Eigen::MatrixXd& functions, std::vector<LinearTerm> terms,
-            std::vector<std::pair<int, int>> penalized_pairs, double shape_weight,
-            const Eigen::MatrixXd& prior_rows, TrackTies ties, int real_terms, bool offsets,
-            int second_order_mode = -1, double phase_factor = 1.0)
+            const Eigen::MatrixXd& track_values, const Eigen::MatrixXd& functions,
+            std::vector<LinearTerm> terms, std::vector<std::pair<int, int>> penalized_pairs,
+            double shape_weight, const Eigen::MatrixXd& prior_rows, TrackTies ties, int real_terms,
+            bool offsets, int second_order_mode = -1, double phase_factor = 1.0)
       : p_(p),
         modes_(modes),
         ig_(phase_integrals),
+        wv_(track_values),
         f_(functions),
         terms_(std::move(terms)),
         pairs_(std::move(penalized_pairs)),
@@ -228,14 +232,24 @@ class VpProblem {
     return true;
   }
 
-  // exp(Phi_j(tau_i)) for every mode: (N x n); false on overflow.
+  bool damping_tracks() const { return wv_.size() > 0; }
+  // exp(Phi_j(tau_i)) for every mode: (N x n); false on overflow or, with damping tracks, a
+  // frequency track not positive everywhere. With damping tracks, also -1 / (2 omega_j(tau_i))
+  // in half_inverse_omega_ (d Re Phi_j / d omega_j).
   bool oscillations(const double* theta, Eigen::MatrixXcd& e) const {
     const int m = basis();
     e.resize(ig_.rows(), modes_);
+    if (damping_tracks()) half_inverse_omega_.resize(ig_.rows(), modes_);
     for (int j = 0; j < modes_; ++j) {
-      const Eigen::VectorXd re = ig_ * Eigen::Map<const Eigen::VectorXd>(theta + 2 * j * m, m);
-      const Eigen::VectorXd im =
-          ig_ * Eigen::Map<const Eigen::VectorXd>(theta + (2 * j + 1) * m, m);
+      const Eigen::Map<const Eigen::VectorXd> cw(theta + (2 * j + 1) * m, m);
+      Eigen::VectorXd re = ig_ * Eigen::Map<const Eigen::VectorXd>(theta + 2 * j * m, m);
+      const Eigen::VectorXd im = ig_ * cw;
+      if (damping_tracks()) {
+        const Eigen::ArrayXd omega = (wv_ * cw).array();
+        if (!(omega > 0.0).all()) return false;
+        re.array() -= 0.5 * omega.log();
+        half_inverse_omega_.col(j) = -0.5 * omega.inverse();
+      }
       if (!re.allFinite() || !im.allFinite() || re.cwiseAbs().maxCoeff() > 600.0) return false;
       for (Eigen::Index i = 0; i < re.size(); ++i) e(i, j) = std::exp(Complex(re(i), im(i)));
     }
@@ -319,21 +333,25 @@ class VpProblem {
     if (!jacobian) return true;
 
     // D = d(A beta)/d theta with beta held fixed: the phase coefficients of mode j move the
-    // whitened contribution Y_j by (integral of B_m) times Y_j (alpha) or i Y_j (omega).
+    // whitened contribution Y_j by (integral of B_m) times Y_j (alpha) or i Y_j (omega); with
+    // damping tracks omega also moves it by -B_m / (2 omega_j) times Y_j.
     const int c = static_cast<int>(p_.whiten.rows());
     const int n = static_cast<int>(e.rows());
     const Eigen::MatrixXcd& contribution = mode_contributions(e, beta);
     Eigen::MatrixXd& d = d_;
     d.setZero(rd + rp, np);
+    const bool damping = damping_tracks();
     for (int j = 0; j < modes_; ++j)
       for (int i = 0; i < n; ++i)
         for (int k = 0; k < c; ++k) {
           const Complex y = contribution(i * c + k, j);
+          const double amplitude_rate = damping ? half_inverse_omega_(i, j) * y.real() : 0.0;
           for (int q = 0; q < m; ++q) {
             const double g = ig_(i, q);
-            if (g == 0.0) continue;
+            if (g == 0.0 && (!damping || wv_(i, q) == 0.0)) continue;
             d(i * c + k, 2 * j * m + q) = g * y.real();
-            d(i * c + k, (2 * j + 1) * m + q) = -g * y.imag();
+            d(i * c + k, (2 * j + 1) * m + q) =
+                -g * y.imag() + (damping ? wv_(i, q) * amplitude_rate : 0.0);
           }
         }
     if (so_mode_ >= 0) {
@@ -345,11 +363,14 @@ class VpProblem {
           const double ydc = 2.0 * dc * beta(first_so() + 3 * k);
           const Complex y2 =
               2.0 * Complex(beta(first_so() + 3 * k + 1), beta(first_so() + 3 * k + 2)) * e2;
+          const double amplitude_rate =
+              damping ? half_inverse_omega_(i, j) * (ydc + y2.real()) : 0.0;
           for (int q = 0; q < m; ++q) {
             const double g = ig_(i, q);
-            if (g == 0.0) continue;
+            if (g == 0.0 && (!damping || wv_(i, q) == 0.0)) continue;
             d(i * c + k, 2 * j * m + q) += g * (ydc + y2.real());
-            d(i * c + k, (2 * j + 1) * m + q) += -g * y2.imag();
+            d(i * c + k, (2 * j + 1) * m + q) +=
+                -g * y2.imag() + (damping ? wv_(i, q) * amplitude_rate : 0.0);
           }
         }
       }
@@ -431,6 +452,7 @@ class VpProblem {
   const Prepared& p_;
   int modes_;
   Eigen::MatrixXd ig_;  // (N x M) running integrals of the track basis, s
+  Eigen::MatrixXd wv_;  // (N x M) the track basis (damping tracks), or empty
   Eigen::MatrixXd f_;   // (N x F) time functions of the linear terms
   std::vector<LinearTerm> terms_;
   std::vector<std::pair<int, int>> pairs_;  // linear terms whose difference is penalized
@@ -444,6 +466,7 @@ class VpProblem {
                  // -1
   // Work buffers of evaluate().
   mutable Eigen::MatrixXcd e_, contribution_;
+  mutable Eigen::MatrixXd half_inverse_omega_;  // (N x n) -1 / (2 omega_j), damping tracks
   mutable Eigen::MatrixXd er_, a_data_, a_penalty_, a_, d_, q_, qtd_;
   mutable Eigen::VectorXd b_;
   mutable Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr_;
@@ -934,8 +957,8 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
     // No offsets: within one window a constant trades with the slow mode's parameters (noise-
     // free spline-exact test: the frequency SDs of the first windows rise past the validity
     // limit); the posture's error is a record-wide constant for the whole-record fit.
-    const VpProblem problem(w, modes, integrals, constant, terms, {}, 0.0, no_prior, TrackTies{},
-                            real, false);
+    const VpProblem problem(w, modes, integrals, Eigen::MatrixXd(), constant, terms, {}, 0.0,
+                            no_prior, TrackTies{}, real, false);
     Eigen::VectorXd candidate = theta;
     StageOutcome o = solve(problem, candidate, options.max_iterations);
     result.iterations += o.iterations;
@@ -1065,17 +1088,18 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
   return result;
 }
 
-}  // namespace
-
-DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& deviation,
-                                   double sample_rate_hz, double start_time_s, double onset_s,
-                                   const DampedModesOptions& options) {
-  check_options(options);
+// One fit with the decay splines of options.decay_tracks (alpha or gamma; sliding: alpha).
+DampedModesResult fit_one(const Eigen::Ref<const Eigen::MatrixXd>& deviation, double sample_rate_hz,
+                          double start_time_s, double onset_s, const DampedModesOptions& options) {
   const Prepared p = prepare(deviation, sample_rate_hz, start_time_s, onset_s, options);
   const int n = static_cast<int>(p.y.rows());
   const int c = static_cast<int>(p.y.cols());
   const int modes = options.modes;
   DampedModesResult result;
+  result.decay_tracks =
+      options.decay_tracks == DecayTracks::gamma && options.design == ModalDesign::whole
+          ? DecayTracks::gamma
+          : DecayTracks::alpha;
   result.t_s = p.t_s;
   result.rate_hz = p.rate_hz;
   result.noise_covariance = p.noise_cov;
@@ -1127,6 +1151,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   if (options.design == ModalDesign::sliding) return fit_sliding(p, options, pencils, real, result);
   const int m = track.size();
   const Eigen::MatrixXd integrals = track.integrals(p.tau_s);
+  const Eigen::MatrixXd track_values = track.values(p.tau_s);
+  // With damping tracks the problem needs the basis values too (VpProblem).
+  const bool damping_tracks = result.decay_tracks == DecayTracks::gamma;
+  const Eigen::MatrixXd damping_values = damping_tracks ? track_values : Eigen::MatrixXd();
   Eigen::VectorXd theta(2 * modes * m + real);
   theta.head(2 * modes * m) = start_tracks(p, track, pencils, options);
   theta.tail(real) = pencils.global.real_rate_per_s;
@@ -1166,7 +1194,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // start tracks) gets the second-order terms.
   int so_mode = -1;
   if (options.second_order) {
-    const VpProblem probe(p, modes, integrals, constant, terms, {}, 0.0,
+    const VpProblem probe(p, modes, integrals, damping_values, constant, terms, {}, 0.0,
                           prior_rows(track, modes, grid[0]), TrackTies{}, real, options.offsets);
     Eigen::VectorXd beta0;
     std::vector<double> scratch(probe.residuals());
@@ -1198,7 +1226,6 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   bool previous_sized = false;  // previous_dof counted (fit_size with_dof)
   // The track basis at the fitted samples (N x M), and omega_j(tau) of every mode at theta `at`
   // (samples x modes), rad/s.
-  const Eigen::MatrixXd track_values = track.values(p.tau_s);
   auto frequency_tracks = [&](const Eigen::VectorXd& at) {
     Eigen::ArrayXXd omega(track_values.rows(), modes);
     for (int j = 0; j < modes; ++j) omega.col(j) = track_values * at.segment((2 * j + 1) * m, m);
@@ -1259,10 +1286,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   auto try_candidate = [&](double roughness, const TrackTies& candidate_ties, bool with_dof,
                            const Eigen::VectorXd& start, auto&& accept, bool restart = false,
                            Eigen::VectorXd* skipped = nullptr) {
-    auto problem = std::make_unique<VpProblem>(p, modes, integrals, design.functions, design.terms,
-                                               design.pairs, design.weight,
-                                               prior_rows(track, modes, roughness), candidate_ties,
-                                               real, options.offsets, so_mode, design.phase_factor);
+    auto problem = std::make_unique<VpProblem>(
+        p, modes, integrals, damping_values, design.functions, design.terms, design.pairs,
+        design.weight, prior_rows(track, modes, roughness), candidate_ties, real, options.offsets,
+        so_mode, design.phase_factor);
     Eigen::VectorXd candidate = start;
     StageOutcome o;
     // Spurious fits (`spurious`) are refused once a fit has been taken (something to fall back
@@ -1330,7 +1357,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // GCV's shape weight for design `d` at the tracks `at`.
   auto gcv_weight = [&](const Design& d, const Eigen::VectorXd& at,
                         const Eigen::VectorXd& roughness) {
-    const VpProblem probe(p, modes, integrals, d.functions, d.terms, d.pairs, 1.0,
+    const VpProblem probe(p, modes, integrals, damping_values, d.functions, d.terms, d.pairs, 1.0,
                           prior_rows(track, modes, roughness), ties, real, options.offsets, so_mode,
                           d.phase_factor);
     return choose_shape_weight(probe, at, p);
@@ -1374,9 +1401,9 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   // Fits design `d` at `roughness` from theta; when usable, takes it (theta, outcome, `into`).
   auto fit_design = [&](const Design& d, const Eigen::VectorXd& roughness,
                         std::unique_ptr<VpProblem>& into) {
-    auto problem = std::make_unique<VpProblem>(p, modes, integrals, d.functions, d.terms, d.pairs,
-                                               d.weight, prior_rows(track, modes, roughness), ties,
-                                               real, options.offsets, so_mode, d.phase_factor);
+    auto problem = std::make_unique<VpProblem>(
+        p, modes, integrals, damping_values, d.functions, d.terms, d.pairs, d.weight,
+        prior_rows(track, modes, roughness), ties, real, options.offsets, so_mode, d.phase_factor);
     Eigen::VectorXd candidate = theta;
     const StageOutcome o = solve(*problem, candidate, options.max_iterations);
     result.iterations += o.iterations;
@@ -1500,10 +1527,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
       StageOutcome o;
       // sd stays the SDs of the last fit (problem) when the sweeps end.
       for (int sweep = 1;; ++sweep) {
-        problem =
-            std::make_unique<VpProblem>(p, modes, integrals, design.functions, design.terms,
-                                        design.pairs, design.weight, prior_rows(track, modes, sd),
-                                        ties, real, options.offsets, so_mode, design.phase_factor);
+        problem = std::make_unique<VpProblem>(p, modes, integrals, damping_values, design.functions,
+                                              design.terms, design.pairs, design.weight,
+                                              prior_rows(track, modes, sd), ties, real,
+                                              options.offsets, so_mode, design.phase_factor);
         o = solve(*problem, candidate, options.max_iterations);
         result.iterations += o.iterations;
         if (!o.usable || sweep == 10) break;
@@ -1568,7 +1595,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     // the untied explanation by changing shapes, which the BIC then weighs against the tied one.
     const TrackTies kept_ties = ties;
     ties = TrackTies{};
-    const VpProblem base(p, modes, integrals, constant, terms, {}, 0.0,
+    const VpProblem base(p, modes, integrals, damping_values, constant, terms, {}, 0.0,
                          prior_rows(track, modes, grid[0]), TrackTies{}, real, options.offsets,
                          so_mode);
     design = shape_design(base, smoothest, constant_roughness(track, grid[0]));
@@ -1661,6 +1688,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   fp.oscillations(theta.data(), e);
   const Eigen::MatrixXd& values = track_values;
   const Eigen::MatrixXd slopes = track.first_derivatives(p.tau_s);
+  const Eigen::MatrixXd curvatures = track.second_derivatives(p.tau_s);
   // Time functions and their derivatives as used by the final terms.
   Eigen::MatrixXd functions = constant, function_slopes = Eigen::MatrixXd::Zero(n, 1);
   if (fp.terms().size() != static_cast<size_t>(modes * c) || fp.penalty_rows() > 0) {
@@ -1681,9 +1709,28 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     mt.alpha_dot_per_s2 = slopes * ca;
     mt.omega_dot_rad_per_s2 = slopes * cw;
     mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
-    const Eigen::MatrixXd cov_a = covariance.block(2 * j * m, 2 * j * m, m, m);
-    const Eigen::MatrixXd cov_w = covariance.block((2 * j + 1) * m, (2 * j + 1) * m, m, m);
-    mt.alpha_sd_per_s = ((values * cov_a).cwiseProduct(values)).rowwise().sum().cwiseSqrt();
+    // d alpha_j(t) / d (decay, frequency coefficients) (T x 2M): the decay coefficients alone, or
+    // with damping tracks alpha = a - omega' / (2 omega) (a = -Gamma the spline) also the
+    // frequency's, -(B' / (2 omega) - omega' B / (2 omega^2)).
+    Eigen::MatrixXd alpha_gradient = Eigen::MatrixXd::Zero(n, 2 * m);
+    alpha_gradient.leftCols(m) = values;
+    if (fp.damping_tracks()) {
+      const Eigen::ArrayXd w = mt.omega_rad_per_s.array(), w_dot = mt.omega_dot_rad_per_s2.array();
+      const Eigen::ArrayXd w_ddot = (curvatures * cw).array();
+      mt.alpha_per_s.array() -= w_dot / (2.0 * w);
+      mt.alpha_dot_per_s2.array() -= w_ddot / (2.0 * w) - w_dot.square() / (2.0 * w.square());
+      alpha_gradient.rightCols(m) = -(slopes.array().colwise() / (2.0 * w) -
+                                      values.array().colwise() * (w_dot / (2.0 * w.square())))
+                                         .matrix();
+    }
+    Eigen::MatrixXd cov_aw(2 * m, 2 * m);
+    cov_aw << covariance.block(2 * j * m, 2 * j * m, m, m),
+        covariance.block(2 * j * m, (2 * j + 1) * m, m, m),
+        covariance.block((2 * j + 1) * m, 2 * j * m, m, m),
+        covariance.block((2 * j + 1) * m, (2 * j + 1) * m, m, m);
+    const Eigen::MatrixXd cov_w = cov_aw.bottomRightCorner(m, m);
+    mt.alpha_sd_per_s =
+        ((alpha_gradient * cov_aw).cwiseProduct(alpha_gradient)).rowwise().sum().cwiseSqrt();
     mt.frequency_sd_hz =
         ((values * cov_w).cwiseProduct(values)).rowwise().sum().cwiseSqrt() / (2.0 * M_PI);
     // Whitened shape w_j(t) and its slope, then channel units a_j = L w_j.
@@ -1727,8 +1774,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     mt.log_envelope_rate_per_s.resize(n, c);
     mt.anr_db.resize(n);
     mt.valid.resize(n);
-    const Eigen::VectorXd log_growth = integrals * ca;      // Re Phi_j
-    const Eigen::VectorXd phase_integral = integrals * cw;  // Im Phi_j, rad
+    const Eigen::VectorXd log_growth = e.col(j).cwiseAbs().array().log().matrix();  // Re Phi_j
+    const Eigen::VectorXd phase_integral = integrals * cw;                          // Im Phi_j, rad
     Eigen::VectorXd shape_phase(c);
     for (int i = 0; i < n; ++i) {
       for (int k = 0; k < c; ++k) {
@@ -1788,6 +1835,35 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   if (options.lost_track_time_s >= 0.0)
     continue_lost_tracks(result.t_s, options.lost_track_time_s, options.anr_threshold_db,
                          result.modes);
+  return result;
+}
+
+}  // namespace
+
+DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& deviation,
+                                   double sample_rate_hz, double start_time_s, double onset_s,
+                                   const DampedModesOptions& options) {
+  check_options(options);
+  if (options.decay_tracks != DecayTracks::best || options.design != ModalDesign::whole)
+    return fit_one(deviation, sample_rate_hz, start_time_s, onset_s, options);
+  // Both decay models, concurrently (independent fits: the same result at any thread count);
+  // the lower whitened data residual wins, alpha on a tie. Both have the same parameters, so the
+  // residual compares two explanations of the same size (docs/tfa_modal.md, "Damping tracks").
+  std::array<DampedModesResult, 2> fits;
+  data::parallel_for_index(2, [&](std::size_t k) {
+    DampedModesOptions o = options;
+    o.decay_tracks = k == 0 ? DecayTracks::alpha : DecayTracks::gamma;
+    fits[k] = fit_one(deviation, sample_rate_hz, start_time_s, onset_s, o);
+  });
+  constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+  const double alpha_rms = fits[0].status.ok ? fits[0].residual_rms_whitened : nan;
+  const double gamma_rms = fits[1].status.ok ? fits[1].residual_rms_whitened : nan;
+  const bool gamma = fits[1].status.ok && (!fits[0].status.ok || gamma_rms < alpha_rms);
+  const int iterations = fits[0].iterations + fits[1].iterations;
+  DampedModesResult result = std::move(fits[gamma ? 1 : 0]);
+  result.iterations = iterations;
+  result.alpha_residual_rms_whitened = alpha_rms;
+  result.gamma_residual_rms_whitened = gamma_rms;
   return result;
 }
 

@@ -20,6 +20,7 @@
 
 #include <Eigen/Core>
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -45,19 +46,41 @@ inline std::string to_string(ModalDesign design) {
   return design == ModalDesign::sliding ? "sliding" : "whole";
 }
 
+/// What the decay splines of the whole-record design are (docs/tfa_modal.md, "Damping tracks"):
+/// alpha, the envelope decay alpha_j(t) itself (Re Phi_j = int alpha_j); gamma, the modal damping
+/// -Gamma_j(t) (Re Phi_j = int(-Gamma_j) - ln(omega_j) / 2, the WKB amplitude of q'' + 2 Gamma
+/// q' + eta^2 q = 0 with slowly changing eta; alpha_j = -Gamma_j - omega_j' / (2 omega_j)
+/// follows, and the roughness prior and decay tie act on Gamma_j); best, both fits (run
+/// concurrently) and the one with the lower whitened data residual kept, alpha on a tie.
+enum class DecayTracks { alpha, gamma, best };
+
+/// "alpha", "gamma" or "best"; throws InputError otherwise.
+inline DecayTracks parse_decay_tracks(const std::string& text) {
+  if (text == "alpha") return DecayTracks::alpha;
+  if (text == "gamma") return DecayTracks::gamma;
+  if (text == "best") return DecayTracks::best;
+  throw InputError("--decay-tracks: unknown value '" + text + "'; expected alpha, gamma or best");
+}
+inline std::string to_string(DecayTracks tracks) {
+  return tracks == DecayTracks::alpha ? "alpha" : tracks == DecayTracks::gamma ? "gamma" : "best";
+}
+
 struct DampedModesOptions {
   int modes = 2;                            ///< n damped oscillations (degrees of freedom)
   ModalDesign design = ModalDesign::whole;  ///< whole record (b) or sliding windows (a)
   double sliding_window_s = 0.5;            ///< sliding design: window length, s (centred on each
                                   ///< fitted sample; the first and last half window of the
                                   ///< record have no estimate)
-  double decimate_hz = 200.0;         ///< rate after zero-phase low-pass + decimation, Hz; <= 0:
-                                      ///< keep the input rate (no filter)
-  double skip_s = 0.025;              ///< after the onset, not free (the pulse), s; the fit also
-                                      ///< starts the filter half-length later
-  double noise_window_s = 1.0;        ///< before the onset, for the noise covariance, s (the
-                                      ///< tfa pipeline shortens it to what the trial holds)
-  double knot_spacing_s = 0.1;        ///< knot spacing of omega_j(t), alpha_j(t), s
+  double decimate_hz = 200.0;   ///< rate after zero-phase low-pass + decimation, Hz; <= 0:
+                                ///< keep the input rate (no filter)
+  double skip_s = 0.025;        ///< after the onset, not free (the pulse), s; the fit also
+                                ///< starts the filter half-length later
+  double noise_window_s = 1.0;  ///< before the onset, for the noise covariance, s (the
+                                ///< tfa pipeline shortens it to what the trial holds)
+  double knot_spacing_s = 0.1;  ///< knot spacing of omega_j(t), alpha_j(t), s
+  DecayTracks decay_tracks = DecayTracks::alpha;  ///< design whole: alpha_j or -Gamma_j
+                                                  ///< splines, or the better fit of both
+                                                  ///< (DecayTracks); sliding: alpha_j
   double shape_knot_spacing_s = 0.5;  ///< knot spacing of the mode shapes a_jk(t), s; <= 0:
                                       ///< constant mode shapes
   double shape_weight = -1.0;         ///< lambda of the penalty on shape changes (whitened
@@ -220,7 +243,14 @@ struct DampedModesResult {
   double decay_tie = 0.0;            ///< decay-tie prior SD used (relative); 0: none
   double frequency_tie = 0.0;        ///< frequency-tie prior SD used (relative); 0: none
   double residual_rms_whitened = 0.0;  ///< RMS whitened data residual (1 = noise level)
-  int iterations = 0;                  ///< Levenberg-Marquardt iterations, all stages
+  int iterations = 0;                  ///< Levenberg-Marquardt iterations, all stages (with
+                                       ///< DecayTracks::best, of both fits)
+  DecayTracks decay_tracks = DecayTracks::alpha;  ///< the decay splines of this fit (alpha or
+                                                  ///< gamma)
+  /// With DecayTracks::best: residual_rms_whitened of the alpha and the gamma fit (NaN for a fit
+  /// that failed); else both NaN.
+  double alpha_residual_rms_whitened = std::numeric_limits<double>::quiet_NaN();
+  double gamma_residual_rms_whitened = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Fits n damped modes to the free response in `deviation` ((S x C), channel units, typically

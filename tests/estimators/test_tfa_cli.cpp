@@ -248,6 +248,35 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   BOOST_CHECK_EQUAL(s["K_nm_per_rad"][0][0].size(), s["t_s"].size());
   BOOST_CHECK_CLOSE(s["K_nm_per_rad"][0][0][s["t_s"].size() / 4].get<double>(), 35.0, 2.0);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --design windows"), 2);
+  BOOST_CHECK_EQUAL(s["options"]["decay_tracks"], "alpha");  // the sliding design's only model
+  // Decay splines: alpha by default; best runs both fits and reports both residuals, keeping the
+  // lower; gamma alone; anything else is refused by name and nothing is written.
+  BOOST_CHECK_EQUAL(j["options"]["decay_tracks"], "alpha");
+  BOOST_CHECK(!j["options"]["decay_tracks_from_data"].get<bool>());
+  BOOST_CHECK(j["decay_tracks_residual_rms_whitened"].is_null());
+  const fs::path best = scratch("decay_best.json"), gamma = scratch("decay_gamma.json");
+  BOOST_REQUIRE_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --decay-tracks best -o " + best.string()), 0);
+  BOOST_REQUIRE_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --decay-tracks gamma -o " + gamma.string()), 0);
+  const nlohmann::json b = read_json(best), g = read_json(gamma);
+  BOOST_CHECK(b["options"]["decay_tracks_from_data"].get<bool>());
+  BOOST_CHECK_EQUAL(g["options"]["decay_tracks"], "gamma");
+  const nlohmann::json& both = b["decay_tracks_residual_rms_whitened"];
+  BOOST_REQUIRE(both.is_object());
+  BOOST_CHECK_EQUAL(both["alpha"].get<double>(), j["residual_rms_whitened"].get<double>());
+  BOOST_CHECK_EQUAL(both["gamma"].get<double>(), g["residual_rms_whitened"].get<double>());
+  const bool gamma_kept = both["gamma"].get<double>() < both["alpha"].get<double>();
+  BOOST_CHECK_EQUAL(b["options"]["decay_tracks"], gamma_kept ? "gamma" : "alpha");
+  BOOST_CHECK(b["K_nm_per_rad"] == (gamma_kept ? g : j)["K_nm_per_rad"]);
+  // The noise-free constant-K trial: the gamma model gives K0 within 1 % too.
+  BOOST_CHECK_CLOSE(g["K_nm_per_rad"][0][0][frames / 2].get<double>(), 35.0, 1.0);
+  const fs::path refused = scratch("decay_refused.json");
+  BOOST_CHECK_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --decay-tracks rho -o " + refused.string(), err),
+      2);
+  BOOST_CHECK_MESSAGE(err.find("--decay-tracks") != std::string::npos, err);
+  BOOST_CHECK(!fs::exists(refused));
 }
 
 BOOST_AUTO_TEST_CASE(auto_onset_defaults_to_the_fx_fy_channels) {
