@@ -1723,11 +1723,8 @@ DampedModesResult fit_one(const Eigen::Ref<const Eigen::MatrixXd>& deviation, do
                                       values.array().colwise() * (w_dot / (2.0 * w.square())))
                                          .matrix();
     }
-    Eigen::MatrixXd cov_aw(2 * m, 2 * m);
-    cov_aw << covariance.block(2 * j * m, 2 * j * m, m, m),
-        covariance.block(2 * j * m, (2 * j + 1) * m, m, m),
-        covariance.block((2 * j + 1) * m, 2 * j * m, m, m),
-        covariance.block((2 * j + 1) * m, (2 * j + 1) * m, m, m);
+    // Mode j's decay and frequency coefficients are adjacent in theta: one 2M x 2M block.
+    const Eigen::MatrixXd cov_aw = covariance.block(2 * j * m, 2 * j * m, 2 * m, 2 * m);
     const Eigen::MatrixXd cov_w = cov_aw.bottomRightCorner(m, m);
     mt.alpha_sd_per_s =
         ((alpha_gradient * cov_aw).cwiseProduct(alpha_gradient)).rowwise().sum().cwiseSqrt();
