@@ -32,9 +32,10 @@
 //   positive semidefinite; modal).
 // For --method modal the spectrogram options are not used; "options" lists the modal ones and the
 // data-chosen weights, and f_ridge_hz / alpha_ridge_per_s repeat the fitted tracks;
-// --decay-tracks alpha|gamma|best (default alpha) chooses the decay splines, options.decay_tracks
-// says which the kept fit has and "decay_tracks_residual_rms_whitened" {alpha, gamma} both fits'
-// residuals with best (else null).
+// --decay-tracks alpha|gamma|best (default best) chooses the decay splines, options.decay_tracks
+// says which the kept fit has, "decay_tracks_residual_rms_whitened" and "decay_tracks_bic"
+// {alpha, gamma} both fits' residuals and BICs with best (else null); "effective_parameters"
+// and "bic" are the kept fit's (design whole; null for sliding).
 // --chirp true (spectrogram method, the default): frame fits whose modes' lambdas change linearly
 // through the window (estimators/ridge.hpp, docs/tfa.md "Chirped frame fits"); --chirp false: the
 // stationary frame model.
@@ -65,7 +66,8 @@ namespace stiffid::apps {
 namespace {
 
 struct TfaCommandOptions {
-  std::string design = "whole", mapping = "eq48", decay_tracks = "alpha";
+  std::string design = "whole", mapping = "eq48",
+              decay_tracks = estimators::to_string(estimators::DampedModesOptions{}.decay_tracks);
   std::string trial_path, angles, forces, onset, method = "modal", baseline_path, subject_path,
                                                  window = "kaiser:3", output_path, spectrogram_path;
   double sample_rate_hz = 0.0;  // --fs, Hz: for files without a t column (0: from t)
@@ -289,13 +291,18 @@ void run(TfaCommandOptions cli) {
                                        : nlohmann::json{{"t_s", series(r.modes.roughness_t_s)},
                                                         {"sd", series(r.modes.roughness_sd)}};
     out["residual_rms_whitened"] = r.modes.residual_rms_whitened;
-    // With --decay-tracks best: both fits' residuals (null: that fit failed); else null.
+    // Design whole: the fit's effective number of parameters and BIC (null: sliding design).
+    out["effective_parameters"] = r.modes.effective_parameters;
+    out["bic"] = r.modes.bic;
+    // With --decay-tracks best: both fits' residuals and BICs (null: that fit failed); else null.
+    const bool both = mo.decay_tracks == estimators::DecayTracks::best &&
+                      mo.design == estimators::ModalDesign::whole;
+    auto both_fits = [&](double alpha, double gamma) {
+      return both ? nlohmann::json{{"alpha", alpha}, {"gamma", gamma}} : nlohmann::json(nullptr);
+    };
     out["decay_tracks_residual_rms_whitened"] =
-        std::isnan(r.modes.alpha_residual_rms_whitened) &&
-                std::isnan(r.modes.gamma_residual_rms_whitened)
-            ? nlohmann::json(nullptr)
-            : nlohmann::json{{"alpha", r.modes.alpha_residual_rms_whitened},
-                             {"gamma", r.modes.gamma_residual_rms_whitened}};
+        both_fits(r.modes.alpha_residual_rms_whitened, r.modes.gamma_residual_rms_whitened);
+    out["decay_tracks_bic"] = both_fits(r.modes.alpha_bic, r.modes.gamma_bic);
     out["converged"] = r.modes.converged;
     out["iterations"] = r.modes.iterations;
     std::vector<double> ratios, frequency_ratios;
@@ -505,7 +512,7 @@ void add_tfa_command(CLI::App& app) {
                   "modal, --design whole: what the decay splines are: alpha (the envelope decay "
                   "alpha_j(t), 1/s), gamma (the modal damping rates Gamma_j(t), 1/s; alpha_j = "
                   "-Gamma_j - omega_j' / (2 omega_j) follows from the frequency track) or best "
-                  "(both fits, concurrently; the lower whitened residual kept; docs/tfa_modal.md, "
+                  "(both fits, concurrently; the lower BIC kept; docs/tfa_modal.md, "
                   "\"Damping tracks\")")
       ->capture_default_str();
   sub->add_flag("--no-second-order", cli->no_second_order,

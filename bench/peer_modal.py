@@ -86,7 +86,8 @@ OPTIONS = dict(decimate_hz=200.0, skip_s=0.025, noise_window_s=1.0, knot_spacing
                shape_knot_spacing_s=0.5, shape_weight=-1.0, track_roughness=-1.0,
                local_roughness_dof=1.0, decay_tie=0.0, init_window_s=0.5, anr_threshold_db=0.0,
                max_frequency_sd_hz=0.1, max_mode_to_data_db=20.0, min_mode_separation=0.01,
-               max_iterations=100, lost_track_time_s=0.3, mapping="eq48", damping_tracks=False)
+               max_iterations=100, lost_track_time_s=0.3, mapping="eq48", decay_tracks="best",
+               damping_tracks=False)  # damping_tracks: one fit's decay splines are -Gamma_j
 PRE_ONSET_S, PULSE_S = 0.2, 0.02
 ROUGHNESS_GRID = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0)
 TIE_GRID = (0.3, 0.1, 0.03, 0.01, 0.003)
@@ -879,6 +880,11 @@ def fit_damped_modes(x, rate_hz, start_s, onset_s, o, modes, mass_at=None):
     chi2 = (r_data @ r_data) / dof
     res["converged"] = converged
     res["residual_rms_whitened"] = math.sqrt((r_data @ r_data) / rd)
+    jd, jp = jac[:rd], jac[rd:]
+    res["effective_parameters"] = (effective_parameters(jd.T @ jd, jp.T @ jp)
+                                   + linear_effective(final, theta)
+                                   + (local_knots if res["roughness_sd"] is not None else 0))
+    res["bic"] = rd * math.log(r_data @ r_data) + math.log(rd) * res["effective_parameters"]
     covariance = max(1.0, chi2) * np.linalg.pinv(jac.T @ jac)
 
     values, slopes = track_values, track.first_derivatives(p["tau_s"])
@@ -1095,8 +1101,15 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
         o["noise_window_s"] = min(o["noise_window_s"], available)
     modes = ang.shape[1]
     # M(theta_0(t)): the posture is constant without a baseline.
-    fit = fit_damped_modes(dev, fs, start_s, onset_s, o, modes,
-                           mass_at=lambda t_s: inertia(posture[1]))
+    # --decay-tracks best: both fits, the lower BIC kept (alpha on a tie), as stiffid's.
+    fits = {}
+    for kind in (("alpha", "gamma") if o["decay_tracks"] == "best" else (o["decay_tracks"],)):
+        fits[kind] = fit_damped_modes(dev, fs, start_s, onset_s,
+                                      dict(o, damping_tracks=kind == "gamma"), modes,
+                                      mass_at=lambda t_s: inertia(posture[1]))
+    kept = "gamma" if "gamma" in fits and ("alpha" not in fits
+                                           or fits["gamma"]["bic"] < fits["alpha"]["bic"]) else "alpha"
+    fit = fits[kept]
     tracks = fit["modes"]
     times = fit["t_s"]
     decimation = max(1, lround(fs / fit["rate_hz"]))
@@ -1159,11 +1172,16 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
                        "decay_tie_from_data": OPTIONS["decay_tie"] < 0,
                        "shape_refit": bool(fit["shape_refit"]),
                        "mapping": OPTIONS["mapping"],
-                       "decay_tracks": "gamma" if OPTIONS["damping_tracks"] else "alpha"},
+                       "decay_tracks": kept,
+                       "decay_tracks_from_data": o["decay_tracks"] == "best"},
            "track_roughness_local": (None if fit["roughness_sd"] is None else
                                      {"t_s": series(fit["roughness_t_s"]),
                                       "sd": series(fit["roughness_sd"])}),
            "residual_rms_whitened": fit["residual_rms_whitened"], "converged": bool(fit["converged"]),
+           "effective_parameters": fit["effective_parameters"], "bic": fit["bic"],
+           "decay_tracks_residual_rms_whitened": (
+               {k: fits[k]["residual_rms_whitened"] for k in fits} if len(fits) == 2 else None),
+           "decay_tracks_bic": {k: fits[k]["bic"] for k in fits} if len(fits) == 2 else None,
            "noise_covariance_rad2": fit["noise_cov"].tolist(),
            "onset_s": onset_s, "free_start_s": free_start_s,
            "analysed_s": [float(times[0]), float(times[-1])], "analysis_rate_hz": fit["rate_hz"],
@@ -1182,7 +1200,7 @@ def identify(path, onset_s, angles=("th1", "th2"), o=OPTIONS):
            "valid": [tr["valid"].tolist() for tr in tracks],
            "anr_db": [series(tr["anr_db"]) for tr in tracks],
            "K_valid": par["valid"].tolist(),
-           "iterations": fit["iterations"],
+           "iterations": sum(f["iterations"] for f in fits.values()),
            "decay_ratio": [tr["decay_ratio"] for tr in tracks]}
     return out
 
@@ -1203,11 +1221,12 @@ def main():
     ap.add_argument("--make-trial")
     ap.add_argument("--decay-tie", type=float, default=OPTIONS["decay_tie"],
                     help="as stiffid's --decay-tie: 0 no tie (default), < 0 from the data")
-    ap.add_argument("--decay-tracks", choices=("alpha", "gamma"), default="alpha",
+    ap.add_argument("--decay-tracks", choices=("alpha", "gamma", "best"),
+                    default=OPTIONS["decay_tracks"],
                     help="as stiffid's --decay-tracks")
     a = ap.parse_args()
     OPTIONS["decay_tie"] = a.decay_tie
-    OPTIONS["damping_tracks"] = a.decay_tracks == "gamma"
+    OPTIONS["decay_tracks"] = a.decay_tracks
     if a.make_trial:
         make_trial(a.make_trial)
         return

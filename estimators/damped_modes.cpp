@@ -707,10 +707,24 @@ double linear_effective_parameters(const VpProblem& problem, const Eigen::Vector
   return effective_parameters(ata, problem.shape_weight() * (r.transpose() * r));
 }
 
+// Effective number of parameters of a fit at theta from its Jacobian there (data rows, then
+// prior rows): the trace of the linearized influence of the track coefficients, tr(N^+ Jd^T Jd)
+// with N = Jd^T Jd + Jp^T Jp, plus the effective number of linear parameters.
+double fit_effective_parameters(const VpProblem& problem, const Eigen::VectorXd& theta,
+                                const RowMajor& jacobian) {
+  // The tall data rows' product symmetric (lower triangle only).
+  const int np = problem.parameters();
+  const auto jd = jacobian.topRows(problem.data_rows());
+  const auto jp = jacobian.bottomRows(problem.residuals() - problem.data_rows());
+  Eigen::MatrixXd data = Eigen::MatrixXd::Zero(np, np);
+  data.selfadjointView<Eigen::Lower>().rankUpdate(jd.transpose());
+  return effective_parameters(data, jp.transpose() * jp) +
+         linear_effective_parameters(problem, theta);
+}
+
 // Size of a converged fit: the whitened residual sum of squares of the data rows and, when asked,
-// the effective number of parameters (trace of the linearized influence of the track
-// coefficients, data rows of the Jacobian against data + prior rows, plus the effective number
-// of linear parameters), from one evaluation. False when the model cannot be evaluated at theta.
+// the effective number of parameters (fit_effective_parameters), from one evaluation. False when
+// the model cannot be evaluated at theta.
 bool fit_size(const VpProblem& problem, const Eigen::VectorXd& theta, bool with_dof, double& rss,
               double& dof) {
   Eigen::VectorXd residual(problem.residuals());
@@ -721,18 +735,7 @@ bool fit_size(const VpProblem& problem, const Eigen::VectorXd& theta, bool with_
     return false;
   }
   rss = residual.head(problem.data_rows()).squaredNorm();
-  dof = 0.0;
-  if (with_dof) {
-    // tr(N^+ Jd^T Jd) with N = Jd^T Jd + Jp^T Jp (data and prior rows); the tall data rows'
-    // product symmetric (lower triangle only).
-    const int np = problem.parameters();
-    const auto jd = jacobian.topRows(problem.data_rows());
-    const auto jp = jacobian.bottomRows(problem.residuals() - problem.data_rows());
-    Eigen::MatrixXd data = Eigen::MatrixXd::Zero(np, np);
-    data.selfadjointView<Eigen::Lower>().rankUpdate(jd.transpose());
-    dof = effective_parameters(data, jp.transpose() * jp) +
-          linear_effective_parameters(problem, theta);
-  }
+  dof = with_dof ? fit_effective_parameters(problem, theta, jacobian) : 0.0;
   return true;
 }
 
@@ -1681,7 +1684,12 @@ DampedModesResult fit_one(const Eigen::Ref<const Eigen::MatrixXd>& deviation, do
                      " iterations (" + outcome.message + "); every valid flag is false";
   }
   const int rd = fp.data_rows();
-  result.residual_rms_whitened = std::sqrt(residual.head(rd).squaredNorm() / rd);
+  const double rss = residual.head(rd).squaredNorm();
+  result.residual_rms_whitened = std::sqrt(rss / rd);
+  // The bent knots of a local roughness count as parameters, as in the continuation's rule.
+  result.effective_parameters = fit_effective_parameters(fp, theta, jacobian) +
+                                (result.roughness_sd.size() > 0 ? local_knots : 0.0);
+  result.bic = rd * std::log(rss) + std::log(static_cast<double>(rd)) * result.effective_parameters;
   const Eigen::MatrixXd covariance = posterior_covariance(fp, residual, jacobian);
 
   Eigen::MatrixXcd e;
@@ -1844,8 +1852,10 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   if (options.decay_tracks != DecayTracks::best || options.design != ModalDesign::whole)
     return fit_one(deviation, sample_rate_hz, start_time_s, onset_s, options);
   // Both decay models, concurrently (independent fits: the same result at any thread count);
-  // the lower whitened data residual wins, alpha on a tie. Both have the same parameters, so the
-  // residual compares two explanations of the same size (docs/tfa_modal.md, "Damping tracks").
+  // the lower BIC wins, alpha on a tie. The two fits have the same spline parameters, but their
+  // priors act on different quantities (alpha_j or Gamma_j), so the roughness continuation and
+  // the ties spend different effective numbers of them: the residual alone would prefer the
+  // more flexible fit (docs/tfa_modal.md, "Damping tracks").
   std::array<DampedModesResult, 2> fits;
   data::parallel_for_index(2, [&](std::size_t k) {
     DampedModesOptions o = options;
@@ -1853,14 +1863,21 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     fits[k] = fit_one(deviation, sample_rate_hz, start_time_s, onset_s, o);
   });
   constexpr double nan = std::numeric_limits<double>::quiet_NaN();
-  const double alpha_rms = fits[0].status.ok ? fits[0].residual_rms_whitened : nan;
-  const double gamma_rms = fits[1].status.ok ? fits[1].residual_rms_whitened : nan;
-  const bool gamma = fits[1].status.ok && (!fits[0].status.ok || gamma_rms < alpha_rms);
+  auto usable = [](const DampedModesResult& f) { return f.status.ok && std::isfinite(f.bic); };
+  const bool gamma = usable(fits[1]) && (!usable(fits[0]) || fits[1].bic < fits[0].bic);
   const int iterations = fits[0].iterations + fits[1].iterations;
+  std::array<double, 2> rms{nan, nan}, bic{nan, nan};
+  for (int k = 0; k < 2; ++k) {
+    if (!fits[k].status.ok) continue;
+    rms[k] = fits[k].residual_rms_whitened;
+    bic[k] = fits[k].bic;
+  }
   DampedModesResult result = std::move(fits[gamma ? 1 : 0]);
   result.iterations = iterations;
-  result.alpha_residual_rms_whitened = alpha_rms;
-  result.gamma_residual_rms_whitened = gamma_rms;
+  result.alpha_residual_rms_whitened = rms[0];
+  result.gamma_residual_rms_whitened = rms[1];
+  result.alpha_bic = bic[0];
+  result.gamma_bic = bic[1];
   return result;
 }
 

@@ -50,8 +50,9 @@ inline std::string to_string(ModalDesign design) {
 /// alpha, the envelope decay alpha_j(t) itself (Re Phi_j = int alpha_j); gamma, the modal damping
 /// -Gamma_j(t) (Re Phi_j = int(-Gamma_j) - ln(omega_j) / 2, the WKB amplitude of q'' + 2 Gamma
 /// q' + eta^2 q = 0 with slowly changing eta; alpha_j = -Gamma_j - omega_j' / (2 omega_j)
-/// follows, and the roughness prior and decay tie act on Gamma_j); best, both fits (run
-/// concurrently) and the one with the lower whitened data residual kept, alpha on a tie.
+/// follows, and the roughness prior and decay tie act on Gamma_j); best (the default), both fits
+/// (run concurrently) and the one with the lower BIC kept (whitened residual and effective
+/// number of parameters; alpha on a tie; docs/tfa_modal.md, "Choosing the damping tracks").
 enum class DecayTracks { alpha, gamma, best };
 
 /// "alpha", "gamma" or "best"; throws InputError otherwise.
@@ -78,9 +79,9 @@ struct DampedModesOptions {
   double noise_window_s = 1.0;  ///< before the onset, for the noise covariance, s (the
                                 ///< tfa pipeline shortens it to what the trial holds)
   double knot_spacing_s = 0.1;  ///< knot spacing of omega_j(t), alpha_j(t), s
-  DecayTracks decay_tracks = DecayTracks::alpha;  ///< design whole: alpha_j or -Gamma_j
-                                                  ///< splines, or the better fit of both
-                                                  ///< (DecayTracks); sliding: alpha_j
+  DecayTracks decay_tracks = DecayTracks::best;  ///< design whole: alpha_j or -Gamma_j
+                                                 ///< splines, or the fit of both with the
+                                                 ///< lower BIC (DecayTracks); sliding: alpha_j
   double shape_knot_spacing_s = 0.5;  ///< knot spacing of the mode shapes a_jk(t), s; <= 0:
                                       ///< constant mode shapes
   double shape_weight = -1.0;         ///< lambda of the penalty on shape changes (whitened
@@ -243,14 +244,23 @@ struct DampedModesResult {
   double decay_tie = 0.0;            ///< decay-tie prior SD used (relative); 0: none
   double frequency_tie = 0.0;        ///< frequency-tie prior SD used (relative); 0: none
   double residual_rms_whitened = 0.0;  ///< RMS whitened data residual (1 = noise level)
-  int iterations = 0;                  ///< Levenberg-Marquardt iterations, all stages (with
-                                       ///< DecayTracks::best, of both fits)
+  /// Whole design: effective number of parameters of the fit (track coefficients by the trace
+  /// of their linearized influence under the priors, linear amplitudes by the trace of their
+  /// penalized smoother, plus a local roughness's bent knots); NaN for the sliding design.
+  double effective_parameters = std::numeric_limits<double>::quiet_NaN();
+  /// Whole design: BIC with the residual variance unknown, N ln(RSS) + ln(N) effective_parameters
+  /// (N whitened data values, RSS their residual sum of squares); NaN for the sliding design.
+  double bic = std::numeric_limits<double>::quiet_NaN();
+  int iterations = 0;  ///< Levenberg-Marquardt iterations, all stages (with
+                       ///< DecayTracks::best, of both fits)
   DecayTracks decay_tracks = DecayTracks::alpha;  ///< the decay splines of this fit (alpha or
                                                   ///< gamma)
-  /// With DecayTracks::best: residual_rms_whitened of the alpha and the gamma fit (NaN for a fit
-  /// that failed); else both NaN.
+  /// With DecayTracks::best: residual_rms_whitened and bic of the alpha and the gamma fit (NaN
+  /// for a fit that failed); else all NaN. The fit with the lower BIC is kept.
   double alpha_residual_rms_whitened = std::numeric_limits<double>::quiet_NaN();
   double gamma_residual_rms_whitened = std::numeric_limits<double>::quiet_NaN();
+  double alpha_bic = std::numeric_limits<double>::quiet_NaN();
+  double gamma_bic = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Fits n damped modes to the free response in `deviation` ((S x C), channel units, typically

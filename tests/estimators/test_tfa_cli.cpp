@@ -127,6 +127,10 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
                           "K_valid",
                           "noise_covariance_rad2",
                           "residual_rms_whitened",
+                          "effective_parameters",
+                          "bic",
+                          "decay_tracks_residual_rms_whitened",
+                          "decay_tracks_bic",
                           "iterations",
                           "decay_ratio",
                           "frequency_ratio",
@@ -249,26 +253,39 @@ BOOST_AUTO_TEST_CASE(the_default_method_is_modal_with_validity_and_anr_per_mode)
   BOOST_CHECK_CLOSE(s["K_nm_per_rad"][0][0][s["t_s"].size() / 4].get<double>(), 35.0, 2.0);
   BOOST_CHECK_EQUAL(run(kTrial + " --angles th1,th2 --onset 2.5 --design windows"), 2);
   BOOST_CHECK_EQUAL(s["options"]["decay_tracks"], "alpha");  // the sliding design's only model
-  // Decay splines: alpha by default; best runs both fits and reports both residuals, keeping the
-  // lower; gamma alone; anything else is refused by name and nothing is written.
-  BOOST_CHECK_EQUAL(j["options"]["decay_tracks"], "alpha");
-  BOOST_CHECK(!j["options"]["decay_tracks_from_data"].get<bool>());
-  BOOST_CHECK(j["decay_tracks_residual_rms_whitened"].is_null());
-  const fs::path best = scratch("decay_best.json"), gamma = scratch("decay_gamma.json");
+  // Decay splines: best by default, which runs both fits and reports both residuals and BICs,
+  // keeping the lower BIC; alpha or gamma alone reports neither; anything else is refused by
+  // name and nothing is written.
+  BOOST_CHECK(j["options"]["decay_tracks_from_data"].get<bool>());
+  BOOST_CHECK(s["decay_tracks_bic"].is_null());  // sliding: one model
+  BOOST_CHECK(s["bic"].is_null());
+  const fs::path alpha = scratch("decay_alpha.json"), gamma = scratch("decay_gamma.json");
   BOOST_REQUIRE_EQUAL(
-      run(kTrial + " --angles th1,th2 --onset 2.5 --decay-tracks best -o " + best.string()), 0);
+      run(kTrial + " --angles th1,th2 --onset 2.5 --decay-tracks alpha -o " + alpha.string()), 0);
   BOOST_REQUIRE_EQUAL(
       run(kTrial + " --angles th1,th2 --onset 2.5 --decay-tracks gamma -o " + gamma.string()), 0);
-  const nlohmann::json b = read_json(best), g = read_json(gamma);
-  BOOST_CHECK(b["options"]["decay_tracks_from_data"].get<bool>());
+  const nlohmann::json a = read_json(alpha), g = read_json(gamma);
+  BOOST_CHECK_EQUAL(a["options"]["decay_tracks"], "alpha");
   BOOST_CHECK_EQUAL(g["options"]["decay_tracks"], "gamma");
-  const nlohmann::json& both = b["decay_tracks_residual_rms_whitened"];
-  BOOST_REQUIRE(both.is_object());
-  BOOST_CHECK_EQUAL(both["alpha"].get<double>(), j["residual_rms_whitened"].get<double>());
+  BOOST_CHECK(!a["options"]["decay_tracks_from_data"].get<bool>());
+  BOOST_CHECK(a["decay_tracks_residual_rms_whitened"].is_null());
+  BOOST_CHECK(g["decay_tracks_bic"].is_null());
+  const nlohmann::json& both = j["decay_tracks_residual_rms_whitened"];
+  const nlohmann::json& bics = j["decay_tracks_bic"];
+  BOOST_REQUIRE(both.is_object() && bics.is_object());
+  BOOST_CHECK_EQUAL(both["alpha"].get<double>(), a["residual_rms_whitened"].get<double>());
   BOOST_CHECK_EQUAL(both["gamma"].get<double>(), g["residual_rms_whitened"].get<double>());
-  const bool gamma_kept = both["gamma"].get<double>() < both["alpha"].get<double>();
-  BOOST_CHECK_EQUAL(b["options"]["decay_tracks"], gamma_kept ? "gamma" : "alpha");
-  BOOST_CHECK(b["K_nm_per_rad"] == (gamma_kept ? g : j)["K_nm_per_rad"]);
+  BOOST_CHECK_EQUAL(bics["alpha"].get<double>(), a["bic"].get<double>());
+  BOOST_CHECK_EQUAL(bics["gamma"].get<double>(), g["bic"].get<double>());
+  // The BIC from the reported residual and effective parameters, N = T x 2 whitened values.
+  const double n = 2.0 * static_cast<double>(frames);
+  const double rms = a["residual_rms_whitened"].get<double>();
+  BOOST_CHECK_CLOSE(
+      a["bic"].get<double>(),
+      n * std::log(n * rms * rms) + std::log(n) * a["effective_parameters"].get<double>(), 1e-6);
+  const bool gamma_kept = bics["gamma"].get<double>() < bics["alpha"].get<double>();
+  BOOST_CHECK_EQUAL(j["options"]["decay_tracks"], gamma_kept ? "gamma" : "alpha");
+  BOOST_CHECK(j["K_nm_per_rad"] == (gamma_kept ? g : a)["K_nm_per_rad"]);
   // The noise-free constant-K trial: the gamma model gives K0 within 1 % too.
   BOOST_CHECK_CLOSE(g["K_nm_per_rad"][0][0][frames / 2].get<double>(), 35.0, 1.0);
   const fs::path refused = scratch("decay_refused.json");
