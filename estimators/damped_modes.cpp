@@ -1091,22 +1091,23 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
   return result;
 }
 
-// One fit with the decay splines of options.decay_tracks (alpha or gamma; sliding: alpha).
-DampedModesResult fit_one(const Eigen::Ref<const Eigen::MatrixXd>& deviation, double sample_rate_hz,
-                          double start_time_s, double onset_s, const DampedModesOptions& options) {
-  const Prepared p = prepare(deviation, sample_rate_hz, start_time_s, onset_s, options);
+// What both decay models' fits start from: the prepared data, the mass metric at the fitted
+// samples and its slope, the track basis, the number of real terms and the matrix pencils (none
+// of which depends on options.decay_tracks).
+struct Start {
+  Prepared p;
+  std::vector<Eigen::MatrixXd> metric, metric_dot;  // (C x C) per fitted sample; empty: none
+  UniformCubicBspline track;
+  int real = 0;
+  StartPencils pencils;
+};
+
+Start make_start(const Eigen::Ref<const Eigen::MatrixXd>& deviation, double sample_rate_hz,
+                 double start_time_s, double onset_s, const DampedModesOptions& options) {
+  Prepared p = prepare(deviation, sample_rate_hz, start_time_s, onset_s, options);
   const int n = static_cast<int>(p.y.rows());
   const int c = static_cast<int>(p.y.cols());
   const int modes = options.modes;
-  DampedModesResult result;
-  result.decay_tracks =
-      options.decay_tracks == DecayTracks::gamma && options.design == ModalDesign::whole
-          ? DecayTracks::gamma
-          : DecayTracks::alpha;
-  result.t_s = p.t_s;
-  result.rate_hz = p.rate_hz;
-  result.noise_covariance = p.noise_cov;
-  result.data = p.y;
   // The mass metric at the fitted samples and its slope (options.mass_metric), checked before
   // the fit.
   const double dt_s = 1.0 / p.rate_hz;
@@ -1128,7 +1129,7 @@ DampedModesResult fit_one(const Eigen::Ref<const Eigen::MatrixXd>& deviation, do
     for (int i = 0; i < n; ++i) metric_dot.push_back(flat_dot.row(i).reshaped(c, c));
   }
 
-  const UniformCubicBspline track(p.tau_s(n - 1), options.knot_spacing_s);
+  UniformCubicBspline track(p.tau_s(n - 1), options.knot_spacing_s);
   // Real terms: as given, or the fewest (0 .. 2n) with which the global pencil finds the n
   // oscillatory poles and the real ones (docs/tfa_modal.md, "Real terms").
   const int max_real = options.real_terms >= 0 ? options.real_terms : 2 * modes;
@@ -1143,8 +1144,35 @@ DampedModesResult fit_one(const Eigen::Ref<const Eigen::MatrixXd>& deviation, do
   while (!pencils.global.status.ok && real < max_real &&
          matrix_pencil_min_samples(modes, real + 1) <= n)
     pencils = start_pencils(p, track, options, ++real);
+  return Start{std::move(p), std::move(metric), std::move(metric_dot), std::move(track),
+               real,         std::move(pencils)};
+}
+
+// One fit from `from` with the decay splines of options.decay_tracks (alpha or gamma; sliding:
+// alpha).
+DampedModesResult fit_one(const Start& from, const DampedModesOptions& options) {
+  const Prepared& p = from.p;
+  const std::vector<Eigen::MatrixXd>& metric = from.metric;
+  const std::vector<Eigen::MatrixXd>& metric_dot = from.metric_dot;
+  const UniformCubicBspline& track = from.track;
+  const int real = from.real;
+  const StartPencils& pencils = from.pencils;
+  const double dt_s = 1.0 / p.rate_hz;
+  const int n = static_cast<int>(p.y.rows());
+  const int c = static_cast<int>(p.y.cols());
+  const int modes = options.modes;
+  DampedModesResult result;
+  result.decay_tracks =
+      options.decay_tracks == DecayTracks::gamma && options.design == ModalDesign::whole
+          ? DecayTracks::gamma
+          : DecayTracks::alpha;
+  result.t_s = p.t_s;
+  result.rate_hz = p.rate_hz;
+  result.noise_covariance = p.noise_cov;
+  result.data = p.y;
   result.start = pencils.global;
   if (!result.start.status.ok) {
+    const int max_real = options.real_terms >= 0 ? options.real_terms : 2 * modes;
     result.status = Status::failure(
         "modal fit: no start: " + result.start.status.message +
         (options.real_terms < 0 ? " (also with 1 to " + std::to_string(max_real) + " real terms)"
@@ -1849,9 +1877,11 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
                                    double sample_rate_hz, double start_time_s, double onset_s,
                                    const DampedModesOptions& options) {
   check_options(options);
+  const Start start = make_start(deviation, sample_rate_hz, start_time_s, onset_s, options);
   if (options.decay_tracks != DecayTracks::best || options.design != ModalDesign::whole)
-    return fit_one(deviation, sample_rate_hz, start_time_s, onset_s, options);
-  // Both decay models, concurrently (independent fits: the same result at any thread count);
+    return fit_one(start, options);
+  // Both decay models from the same start, concurrently (independent fits: the same result at
+  // any thread count);
   // the lower BIC wins, alpha on a tie. The two fits have the same spline parameters, but their
   // priors act on different quantities (alpha_j or Gamma_j), so the roughness continuation and
   // the ties spend different effective numbers of them: the residual alone would prefer the
@@ -1860,7 +1890,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   data::parallel_for_index(2, [&](std::size_t k) {
     DampedModesOptions o = options;
     o.decay_tracks = k == 0 ? DecayTracks::alpha : DecayTracks::gamma;
-    fits[k] = fit_one(deviation, sample_rate_hz, start_time_s, onset_s, o);
+    fits[k] = fit_one(start, o);
   });
   constexpr double nan = std::numeric_limits<double>::quiet_NaN();
   auto usable = [](const DampedModesResult& f) { return f.status.ok && std::isfinite(f.bic); };
