@@ -1881,11 +1881,11 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
   if (options.decay_tracks != DecayTracks::best || options.design != ModalDesign::whole)
     return fit_one(start, options);
   // Both decay models from the same start, concurrently (independent fits: the same result at
-  // any thread count);
-  // the lower BIC wins, alpha on a tie. The two fits have the same spline parameters, but their
-  // priors act on different quantities (alpha_j or Gamma_j), so the roughness continuation and
-  // the ties spend different effective numbers of them: the residual alone would prefer the
-  // more flexible fit (docs/tfa_modal.md, "Damping tracks").
+  // any thread count); the lower BIC wins, alpha on a tie. The two fits have the same spline
+  // parameters, but their priors act on different quantities (alpha_j or Gamma_j), so the
+  // roughness continuation and the ties spend different effective numbers of them: the
+  // residual alone would prefer the more flexible fit (docs/tfa_modal.md, "Choosing the damping
+  // tracks by BIC").
   std::array<DampedModesResult, 2> fits;
   data::parallel_for_index(2, [&](std::size_t k) {
     DampedModesOptions o = options;
@@ -1893,7 +1893,8 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
     fits[k] = fit_one(start, o);
   });
   constexpr double nan = std::numeric_limits<double>::quiet_NaN();
-  auto usable = [](const DampedModesResult& f) { return f.status.ok && std::isfinite(f.bic); };
+  // An exact fit (RSS 0) has BIC -inf and wins; NaN (no BIC) never does.
+  auto usable = [](const DampedModesResult& f) { return f.status.ok && !std::isnan(f.bic); };
   const bool gamma = usable(fits[1]) && (!usable(fits[0]) || fits[1].bic < fits[0].bic);
   const int iterations = fits[0].iterations + fits[1].iterations;
   std::array<double, 2> rms{nan, nan}, bic{nan, nan};

@@ -301,7 +301,7 @@ BOOST_AUTO_TEST_CASE(mode_shapes_that_rotate_are_fitted_as_shapes_not_as_rough_t
   // The closed form's alpha_j are splines, which the alpha model represents and the gamma model
   // (alpha_j = -Gamma_j - omega_j'/(2 omega_j)) only nearly: the tolerances below are the alpha
   // model's. The default (best) keeps gamma here, by 3 fewer effective parameters for a 0.6 %
-  // higher residual, and gets 0.6 / 0.7 % (f) and 2.5 / 6.4 % (alpha).
+  // higher residual, and gets 0.6 / 0.7 % (f) and 2.2 / 6.4 % (alpha).
   DampedModesOptions alpha_model;
   alpha_model.decay_tracks = DecayTracks::alpha;
   const DampedModesResult r = fit_damped_modes(x, kRateHz, 0.0, kOnsetS, alpha_model);
