@@ -12,7 +12,9 @@ Stages, as estimators/tfa.cpp (identify_tfa, modal branch) and the files it call
   - multichannel matrix pencil on the fitted record, sliding 0.5 s pencils and the ridge spline
     through the kept estimates as the start (matrix_pencil.cpp, start_tracks);
   - uniform cubic B-spline tracks omega_j, alpha_j (knots 0.1 s) with closed-form running
-    integrals (cubic_bspline.cpp);
+    integrals (cubic_bspline.cpp); with --decay-tracks gamma the decay splines are -Gamma_j, and
+    with best (the default, as stiffid's) both fits are made in turn and the lower BIC (whitened
+    residual and effective parameters) kept;
   - a constant offset per channel among the linear parameters (the posture's estimation error),
     and the strongest mode's square (exp(2 Re Phi_J), exp(2 Phi_J)) offered after the smoothest
     fit and kept by the BIC rule (the arm's quadratic distortion);
