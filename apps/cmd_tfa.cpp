@@ -252,39 +252,38 @@ void run(TfaCommandOptions cli) {
                     {"decimation", r.decimation}};
   if (o.method == estimators::TfaMethod::modal) {
     const estimators::DampedModesOptions& mo = o.modes;
-    out["options"].update(
-        {{"decimate_hz", mo.decimate_hz},
-         {"knots_s", mo.knot_spacing_s},
-         {"shape_knots_s", mo.shape_knot_spacing_s},
-         {"skip_s", mo.skip_s},
-         {"noise_window_s", mo.noise_window_s},
-         {"init_window_s", mo.init_window_s},
-         {"anr_threshold_db", mo.anr_threshold_db},
-         {"max_frequency_sd_hz", mo.max_frequency_sd_hz},
-         {"max_mode_to_data_db", mo.max_mode_to_data_db},
-         {"min_mode_separation", mo.min_mode_separation},
-         {"shape_weight", r.modes.shape_weight},
-         {"shape_phase_factor", mo.shape_phase_factor},
-         {"track_roughness", r.modes.track_roughness},
-         {"shape_weight_from_data", mo.shape_weight < 0.0},
-         {"track_roughness_from_data", mo.track_roughness < 0.0},
-         {"local_roughness_dof", mo.local_roughness_dof},
-         {"lost_track_time_s", mo.lost_track_time_s},
-         {"decay_tie", r.modes.decay_tie},
-         {"decay_tie_from_data", mo.decay_tie < 0.0},
-         {"frequency_tie", r.modes.frequency_tie},
-         {"frequency_tie_from_data", mo.frequency_tie < 0.0},
-         {"design", estimators::to_string(mo.design)},
-         {"decay_tracks", estimators::to_string(r.modes.decay_tracks)},
-         {"decay_tracks_from_data", mo.decay_tracks == estimators::DecayTracks::best &&
-                                        mo.design == estimators::ModalDesign::whole},
-         {"sliding_window_s", mo.sliding_window_s},
-         {"real_terms", r.modes.real_terms.size()},
-         {"real_terms_from_data", mo.real_terms < 0},
-         {"offsets", mo.offsets && mo.design == estimators::ModalDesign::whole},
-         {"second_order", r.modes.second_order_mode >= 0},
-         {"shape_refit", r.modes.shape_refit},
-         {"mapping", estimators::to_string(o.modal_parameters.mapping)}});
+    const bool both = estimators::fits_both_decay_models(mo);  // best: both fits' figures too
+    out["options"].update({{"decimate_hz", mo.decimate_hz},
+                           {"knots_s", mo.knot_spacing_s},
+                           {"shape_knots_s", mo.shape_knot_spacing_s},
+                           {"skip_s", mo.skip_s},
+                           {"noise_window_s", mo.noise_window_s},
+                           {"init_window_s", mo.init_window_s},
+                           {"anr_threshold_db", mo.anr_threshold_db},
+                           {"max_frequency_sd_hz", mo.max_frequency_sd_hz},
+                           {"max_mode_to_data_db", mo.max_mode_to_data_db},
+                           {"min_mode_separation", mo.min_mode_separation},
+                           {"shape_weight", r.modes.shape_weight},
+                           {"shape_phase_factor", mo.shape_phase_factor},
+                           {"track_roughness", r.modes.track_roughness},
+                           {"shape_weight_from_data", mo.shape_weight < 0.0},
+                           {"track_roughness_from_data", mo.track_roughness < 0.0},
+                           {"local_roughness_dof", mo.local_roughness_dof},
+                           {"lost_track_time_s", mo.lost_track_time_s},
+                           {"decay_tie", r.modes.decay_tie},
+                           {"decay_tie_from_data", mo.decay_tie < 0.0},
+                           {"frequency_tie", r.modes.frequency_tie},
+                           {"frequency_tie_from_data", mo.frequency_tie < 0.0},
+                           {"design", estimators::to_string(mo.design)},
+                           {"decay_tracks", estimators::to_string(r.modes.decay_tracks)},
+                           {"decay_tracks_from_data", both},
+                           {"sliding_window_s", mo.sliding_window_s},
+                           {"real_terms", r.modes.real_terms.size()},
+                           {"real_terms_from_data", mo.real_terms < 0},
+                           {"offsets", mo.offsets && mo.design == estimators::ModalDesign::whole},
+                           {"second_order", r.modes.second_order_mode >= 0},
+                           {"shape_refit", r.modes.shape_refit},
+                           {"mapping", estimators::to_string(o.modal_parameters.mapping)}});
     // The roughness at each knot when it varies along the record (null: one roughness).
     out["track_roughness_local"] = r.modes.roughness_sd.size() == 0
                                        ? nlohmann::json(nullptr)
@@ -295,8 +294,6 @@ void run(TfaCommandOptions cli) {
     out["effective_parameters"] = r.modes.effective_parameters;
     out["bic"] = r.modes.bic;
     // With --decay-tracks best: both fits' residuals and BICs (null: that fit failed); else null.
-    const bool both = mo.decay_tracks == estimators::DecayTracks::best &&
-                      mo.design == estimators::ModalDesign::whole;
     auto both_fits = [&](double alpha, double gamma) {
       return both ? nlohmann::json{{"alpha", alpha}, {"gamma", gamma}} : nlohmann::json(nullptr);
     };

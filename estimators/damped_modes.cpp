@@ -1091,6 +1091,11 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
   return result;
 }
 
+// The most real terms the start may take: as given, or 2n when they are chosen from the data.
+int max_real_terms(const DampedModesOptions& options) {
+  return options.real_terms >= 0 ? options.real_terms : 2 * options.modes;
+}
+
 // What both decay models' fits start from: the prepared data, the mass metric at the fitted
 // samples and its slope, the track basis, the number of real terms and the matrix pencils (none
 // of which depends on options.decay_tracks).
@@ -1132,7 +1137,7 @@ Start make_start(const Eigen::Ref<const Eigen::MatrixXd>& deviation, double samp
   UniformCubicBspline track(p.tau_s(n - 1), options.knot_spacing_s);
   // Real terms: as given, or the fewest (0 .. 2n) with which the global pencil finds the n
   // oscillatory poles and the real ones (docs/tfa_modal.md, "Real terms").
-  const int max_real = options.real_terms >= 0 ? options.real_terms : 2 * modes;
+  const int max_real = max_real_terms(options);
   int real = std::max(0, options.real_terms);
   if (matrix_pencil_min_samples(modes, real) > n) {
     throw InputError("modal fit: real_terms (--real-terms) " + std::to_string(real) + " with " +
@@ -1172,11 +1177,11 @@ DampedModesResult fit_one(const Start& from, const DampedModesOptions& options) 
   result.data = p.y;
   result.start = pencils.global;
   if (!result.start.status.ok) {
-    const int max_real = options.real_terms >= 0 ? options.real_terms : 2 * modes;
     result.status = Status::failure(
         "modal fit: no start: " + result.start.status.message +
-        (options.real_terms < 0 ? " (also with 1 to " + std::to_string(max_real) + " real terms)"
-                                : ""));
+        (options.real_terms < 0
+             ? " (also with 1 to " + std::to_string(max_real_terms(options)) + " real terms)"
+             : ""));
     return result;
   }
   if (options.design == ModalDesign::sliding) return fit_sliding(p, options, pencils, real, result);
@@ -1878,8 +1883,7 @@ DampedModesResult fit_damped_modes(const Eigen::Ref<const Eigen::MatrixXd>& devi
                                    const DampedModesOptions& options) {
   check_options(options);
   const Start start = make_start(deviation, sample_rate_hz, start_time_s, onset_s, options);
-  if (options.decay_tracks != DecayTracks::best || options.design != ModalDesign::whole)
-    return fit_one(start, options);
+  if (!fits_both_decay_models(options)) return fit_one(start, options);
   // Both decay models from the same start, concurrently (independent fits: the same result at
   // any thread count); the lower BIC wins, alpha on a tie. The two fits have the same spline
   // parameters, but their priors act on different quantities (alpha_j or Gamma_j), so the

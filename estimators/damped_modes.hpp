@@ -177,6 +177,12 @@ struct DampedModesOptions {
                                       ///< when they pay by the roughness rule
 };
 
+/// True when `o` asks for both decay models' fits, the lower BIC kept (DecayTracks::best with
+/// the whole-record design; the sliding design has alpha_j splines only).
+inline bool fits_both_decay_models(const DampedModesOptions& o) {
+  return o.decay_tracks == DecayTracks::best && o.design == ModalDesign::whole;
+}
+
 /// One real term of the fit: b_k exp(beta tau), tau from the first fitted sample.
 struct RealTerm {
   double rate_per_s = 0.0;     ///< beta, 1/s (< 0 decays)
