@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <complex>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <numeric>
@@ -1153,28 +1154,847 @@ Start make_start(const Eigen::Ref<const Eigen::MatrixXd>& deviation, double samp
                real,         std::move(pencils)};
 }
 
+// The whole-record fit (ModalDesign::whole) of one decay model from a start: the stages of
+// docs/tfa_modal.md in turn (run()), each trying candidate fits and taking or refusing them
+// against the fit taken so far (taken_, theta_, outcome_, and its size taken_rss_, taken_dof_).
+class WholeFit {
+ public:
+  // `result` carries what fit_one filled in before the fit (times, data, the start).
+  WholeFit(const Start& from, const DampedModesOptions& options, DampedModesResult result);
+  DampedModesResult run();
+
+ private:
+  // A stage's rule for taking a candidate: its RSS, effective parameters and the BIC price
+  // ln(N) s^2 of one effective parameter (take_fit).
+  using Accept = std::function<bool(double rss, double dof, double price)>;
+  // The linear design of the fits: constant mode shapes (stage 1) or slowly varying ones.
+  struct Design {
+    Eigen::MatrixXd functions;
+    std::vector<LinearTerm> terms;
+    std::vector<std::pair<int, int>> pairs;
+    double weight = 0.0;
+    double phase_factor = 1.0;  // the penalty on the shapes' phase part, relative to weight
+  };
+
+  // The problem of design `d` with shape weight `weight`, track prior rows `prior`, ties `ties`
+  // and the second-order terms of mode `so_mode` (-1: none).
+  VpProblem vp_problem(const Design& d, double weight, const Eigen::MatrixXd& prior,
+                       const TrackTies& ties, int so_mode) const {
+    return VpProblem(p_, modes_, integrals_, damping_values_, d.functions, d.terms, d.pairs, weight,
+                     prior, ties, real_, options_.offsets, so_mode, d.phase_factor);
+  }
+  // The problem of the current design and second-order terms with the track prior `prior` and
+  // ties `ties`.
+  std::unique_ptr<VpProblem> current_problem(const Eigen::MatrixXd& prior,
+                                             const TrackTies& ties) const {
+    return std::make_unique<VpProblem>(vp_problem(design_, design_.weight, prior, ties, so_mode_));
+  }
+
+  int strongest_mode() const;
+  Eigen::ArrayXXd frequency_tracks(const Eigen::VectorXd& at) const;
+  bool spurious(const VpProblem& problem, const Eigen::VectorXd& at) const;
+  bool take_fit(std::unique_ptr<VpProblem>& problem, const Eigen::VectorXd& candidate,
+                const StageOutcome& o, bool with_dof, bool spurious_fit, const Accept& accept);
+  bool try_candidate(double roughness, const TrackTies& candidate_ties, bool with_dof,
+                     const Eigen::VectorXd& start, const Accept& accept, bool restart = false,
+                     Eigen::VectorXd* skipped = nullptr);
+  // The roughness continuation's rule: a rougher fit pays for its extra effective parameters.
+  bool rougher(double rss, double dof, double price) const {
+    return taken_rss_ - rss > price * (dof - taken_dof_);
+  }
+  Accept rougher_rule() const {
+    return [this](double rss, double dof, double price) { return rougher(rss, dof, price); };
+  }
+  double gcv_weight(const Design& d, const Eigen::VectorXd& at,
+                    const Eigen::VectorXd& roughness) const;
+  Design shape_design(const VpProblem& fitted, const Eigen::VectorXd& at,
+                      const Eigen::VectorXd& roughness) const;
+  bool fit_design(const Design& d, const Eigen::VectorXd& roughness,
+                  std::unique_ptr<VpProblem>& into);
+
+  bool roughness_continuation();
+  void search_tie(int part, double option);
+  void local_roughness();
+  void shape_stage();
+  void shape_refit();
+  void finish();
+  // What every mode's report reads from the final fit.
+  struct FinalFit {
+    explicit FinalFit(const VpProblem& problem) : fp(problem) {}
+    const VpProblem& fp;
+    Eigen::VectorXd beta;                        // the linear solution
+    Eigen::MatrixXcd e;                          // (N x n) exp(Phi_j)
+    Eigen::MatrixXd covariance;                  // posterior covariance of theta
+    Eigen::MatrixXd slopes, curvatures;          // (N x M) the track basis' derivatives, 1/s, 1/s^2
+    Eigen::MatrixXd functions, function_slopes;  // the final terms' time functions, their slopes
+  };
+  ModeTrack mode_track(int j, const FinalFit& f);
+
+  // Given.
+  const Start& from_;
+  const DampedModesOptions& options_;
+  const Prepared& p_;
+  const UniformCubicBspline& track_;
+  const int n_, c_, modes_, m_, real_;
+  const double length_s_;  // fitted record, s
+  const bool shapes_;      // the shape stages run (knot spacing given, C > 1, a long record)
+  const Eigen::MatrixXd integrals_, track_values_;
+  const Eigen::MatrixXd damping_values_;  // the track values with damping tracks, else empty
+  const Eigen::MatrixXd constant_;        // (N x 1) ones: the constant shapes' time function
+  const Design constant_design_;          // stage 1: one free amplitude per mode and channel
+  std::vector<double> grid_;              // the roughness candidates, smooth -> rough
+  Eigen::VectorXd cold_;                  // the start tracks, the continuation's second start
+
+  // The state of the fit.
+  DampedModesResult result_;
+  Eigen::VectorXd theta_;
+  int so_mode_ = -1;  // mode whose second-order terms are fitted, or -1
+  Design design_;
+  TrackTies ties_;
+  std::unique_ptr<VpProblem> taken_;  // the problem of the fit taken (null: none yet)
+  StageOutcome outcome_;
+  double taken_rss_ = std::numeric_limits<double>::infinity();
+  double taken_dof_ = 0.0;
+  bool taken_sized_ = false;   // taken_dof_ counted (fit_size with_dof)
+  std::size_t chosen_ = 0;     // stage 1's roughness, in grid_
+  Eigen::VectorXd smoothest_;  // the smoothest constant-shape fit, where the shape refit starts
+  double uniform_roughness_ = 0.0;    // stage 1's roughness (with the ties' resumption)
+  Eigen::VectorXd roughness_sd_;      // per knot: the track prior's SDs of the fit taken
+  double local_knots_ = 0.0;          // bent knots of the local roughness taken
+  std::unique_ptr<VpProblem> final_;  // the problem of the result
+};
+
+// Stage 1's linear terms: one free complex amplitude per mode and whitened channel.
+std::vector<LinearTerm> constant_shape_terms(int modes, int channels) {
+  std::vector<LinearTerm> terms;
+  for (int j = 0; j < modes; ++j)
+    for (int k = 0; k < channels; ++k) terms.push_back({j, Eigen::VectorXcd::Unit(channels, k), 0});
+  return terms;
+}
+
+WholeFit::WholeFit(const Start& from, const DampedModesOptions& options, DampedModesResult result)
+    : from_(from),
+      options_(options),
+      p_(from.p),
+      track_(from.track),
+      n_(static_cast<int>(from.p.y.rows())),
+      c_(static_cast<int>(from.p.y.cols())),
+      modes_(options.modes),
+      m_(from.track.size()),
+      real_(from.real),
+      length_s_(from.p.tau_s(n_ - 1)),
+      shapes_(options.shape_knot_spacing_s > 0.0 && c_ > 1 &&
+              length_s_ > options.shape_knot_spacing_s),
+      integrals_(from.track.integrals(from.p.tau_s)),
+      track_values_(from.track.values(from.p.tau_s)),
+      // With damping tracks the problem needs the basis values too (VpProblem).
+      damping_values_(result.decay_tracks == DecayTracks::gamma ? track_values_
+                                                                : Eigen::MatrixXd()),
+      constant_(Eigen::MatrixXd::Ones(n_, 1)),
+      constant_design_{constant_, constant_shape_terms(modes_, c_), {}, 0.0},
+      result_(std::move(result)) {
+  theta_.resize(2 * modes_ * m_ + real_);
+  theta_.head(2 * modes_ * m_) = start_tracks(p_, track_, from.pencils, options_);
+  theta_.tail(real_) = from.pencils.global.real_rate_per_s;
+  cold_ = theta_;
+  grid_ = {options_.track_roughness};
+  if (options_.track_roughness < 0.0) grid_ = {0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0};
+  design_ = constant_design_;
+}
+
+// The stages in turn; a failure ends the fit with result_.status set.
+DampedModesResult WholeFit::run() {
+  if (!roughness_continuation()) {
+    result_.status = Status::failure("modal fit: no usable fit even with the smoothest tracks");
+    return std::move(result_);
+  }
+  if (modes_ > 1 && options_.decay_tie != 0.0) search_tie(0, options_.decay_tie);
+  if (modes_ > 1 && options_.frequency_tie != 0.0) search_tie(1, options_.frequency_tie);
+  result_.decay_tie = ties_[0].sd;
+  result_.frequency_tie = ties_[1].sd;
+  // A tie leaves fewer effective parameters to each roughness step: the continuation resumes
+  // from the chosen roughness.
+  const bool any_tie = ties_[0].sd > 0.0 || ties_[1].sd > 0.0;
+  for (std::size_t g = chosen_ + 1; any_tie && g < grid_.size(); ++g) {
+    if (!try_candidate(grid_[g], ties_, true, theta_, rougher_rule())) break;
+    result_.track_roughness = grid_[g];
+  }
+  uniform_roughness_ = result_.track_roughness;  // stage 1's, for the shape refit
+  roughness_sd_ = constant_roughness(track_, uniform_roughness_);
+  local_roughness();
+  final_ = std::move(taken_);
+  shape_stage();
+  shape_refit();
+  finish();
+  return std::move(result_);
+}
+
+// The strongest mode at the start (largest whitened amplitude of the linear solution at the
+// start tracks), which is offered the second-order terms; -1 when the start does not evaluate.
+int WholeFit::strongest_mode() const {
+  const VpProblem probe =
+      vp_problem(constant_design_, 0.0, prior_rows(track_, modes_, grid_[0]), TrackTies{}, -1);
+  Eigen::VectorXd beta0;
+  std::vector<double> scratch(probe.residuals());
+  int strongest = -1;
+  if (probe.evaluate(theta_.data(), scratch.data(), nullptr, &beta0)) {
+    double best = -1.0;
+    for (int j = 0; j < modes_; ++j) {
+      const double a = beta0.segment(2 * j * c_, 2 * c_).norm();
+      if (a > best) {
+        best = a;
+        strongest = j;
+      }
+    }
+  }
+  return strongest;
+}
+
+// The track basis at the fitted samples (N x M), and omega_j(tau) of every mode at theta `at`
+// (samples x modes), rad/s.
+Eigen::ArrayXXd WholeFit::frequency_tracks(const Eigen::VectorXd& at) const {
+  Eigen::ArrayXXd omega(track_values_.rows(), modes_);
+  for (int j = 0; j < modes_; ++j) omega.col(j) = track_values_ * at.segment((2 * j + 1) * m_, m_);
+  return omega;
+}
+
+// A fit that explains the response with fewer modes than it claims (docs/tfa_modal.md,
+// "Merged modes" and "Cancelling modes"):
+// - two modes whose frequency tracks agree within min_mode_separation of their mean at every
+//   sample are one mode counted twice: a confluent pair (A + B tau) exp(Phi) with large,
+//   cancelling amplitudes, not two modes of the arm (the validity checks flag every frame);
+// - modes whose parts of the model cancel, their whitened energies over the record adding up to
+//   more than kMaxCancellation times that of their sum, are the same with tracks apart (one
+//   mode's amplitude change followed by two opposed oscillations);
+// - second-order terms whose part of the model has more energy than the mode that carries
+//   them are no small distortion of it: they stand in for a mode (the harmonic exp(2 Phi_j) of
+//   a spurious mode at half a weak mode's frequency).
+// The roughness continuation does not take such a candidate (it skips it), and of its two
+// starts the one that is not spurious is preferred; a spurious fit from the continuation's
+// start alone gets the start tracks as a second start.
+bool WholeFit::spurious(const VpProblem& problem, const Eigen::VectorXd& at) const {
+  const Eigen::ArrayXXd omega = frequency_tracks(at);
+  for (int j = 0; j < modes_; ++j)
+    for (int l = j + 1; l < modes_; ++l) {
+      const Eigen::ArrayXd relative_gap =
+          (omega.col(j) - omega.col(l)).abs() / (0.5 * (omega.col(j).abs() + omega.col(l).abs()));
+      if (relative_gap.maxCoeff() < options_.min_mode_separation) return true;
+    }
+  VpProblem::PartEnergies energy;
+  if (!problem.part_energies(at.data(), energy)) return true;
+  if (energy.modes.sum() > kMaxCancellation * energy.sum) return true;
+  const int so = problem.second_order_mode();
+  return so >= 0 && energy.distortion >= energy.modes(so);
+}
+
+// Takes the fit `o` at `candidate` of `problem` (taken_, theta_, outcome_, taken_*) when it is
+// usable, not spurious (`spurious_fit`, the caller's test) and, once a fit has been taken,
+// `accept` says so for its RSS, effective parameters and the BIC price ln(N) s^2, s^2 = RSS /
+// (N - dof), never below 1; false otherwise.
+bool WholeFit::take_fit(std::unique_ptr<VpProblem>& problem, const Eigen::VectorXd& candidate,
+                        const StageOutcome& o, bool with_dof, bool spurious_fit,
+                        const Accept& accept) {
+  double rss = 0.0, dof = 0.0;
+  if (!o.usable || !fit_size(*problem, candidate, with_dof, rss, dof)) return false;
+  if (spurious_fit) return false;
+  const double rows = problem->data_rows();
+  const double variance = std::max(1.0, rss / std::max(1.0, rows - dof));
+  if (taken_ && !accept(rss, dof, std::log(rows) * variance)) return false;
+  taken_ = std::move(problem);
+  outcome_ = o;
+  theta_ = candidate;
+  taken_rss_ = rss;
+  taken_dof_ = dof;
+  taken_sized_ = with_dof;
+  return true;
+}
+
+// Fits one candidate from `start` (with `restart`, also from the start tracks: the lower cost
+// is kept); taken (take_fit) when `accept` says so for its RSS and effective parameters; false
+// when it is not usable, spurious or not taken. A usable fit refused as spurious goes to
+// `skipped` (when given; emptied otherwise).
+bool WholeFit::try_candidate(double roughness, const TrackTies& candidate_ties, bool with_dof,
+                             const Eigen::VectorXd& start, const Accept& accept, bool restart,
+                             Eigen::VectorXd* skipped) {
+  auto problem = current_problem(prior_rows(track_, modes_, roughness), candidate_ties);
+  Eigen::VectorXd candidate = start;
+  StageOutcome o;
+  // Spurious fits (`spurious`) are refused once a fit has been taken (something to fall back
+  // on).
+  const bool check = taken_ != nullptr;
+  auto is_spurious = [&](const StageOutcome& so, const Eigen::VectorXd& at) {
+    return check && so.usable && spurious(*problem, at);
+  };
+  bool candidate_spurious = false;  // is_spurious(o, candidate), once per fit
+  // Takes the fit from the start tracks (spurious or not: `other_spurious`) when it is usable
+  // and the kept one is not, or is spurious while it is not, or (equally spurious) has the
+  // higher cost: the same choice at any thread count (the continuation's on a tie).
+  auto take_cold = [&](const StageOutcome& from_cold, const Eigen::VectorXd& other) {
+    const bool other_spurious = is_spurious(from_cold, other);
+    const bool prefer =
+        from_cold.usable &&
+        (!o.usable ||
+         (candidate_spurious != other_spurious ? candidate_spurious : from_cold.cost < o.cost));
+    if (prefer) {
+      o = from_cold;
+      candidate = other;
+      candidate_spurious = other_spurious;
+    }
+  };
+  const bool other_start = start.size() == cold_.size() && start != cold_;
+  if (!restart || !other_start) {
+    o = solve(*problem, candidate, options_.max_iterations);
+    result_.iterations += o.iterations;
+    candidate_spurious = is_spurious(o, candidate);
+    // A spurious fit from the continuation: the start tracks get their chance.
+    if (other_start && candidate_spurious) {
+      Eigen::VectorXd other = cold_;
+      const StageOutcome from_cold = solve(*problem, other, options_.max_iterations);
+      result_.iterations += from_cold.iterations;
+      take_cold(from_cold, other);
+    }
+  } else {
+    // Both starts, solved side by side (each with its own problem and work buffers).
+    const VpProblem twin(*problem);
+    Eigen::VectorXd other = cold_;
+    StageOutcome from_cold;
+    data::parallel_for_index(2, [&](std::size_t k) {
+      if (k == 0)
+        o = solve(*problem, candidate, options_.max_iterations);
+      else
+        from_cold = solve(twin, other, options_.max_iterations);
+    });
+    result_.iterations += o.iterations + from_cold.iterations;
+    candidate_spurious = is_spurious(o, candidate);
+    take_cold(from_cold, other);
+  }
+  if (skipped) *skipped = candidate_spurious ? candidate : Eigen::VectorXd();
+  return take_fit(problem, candidate, o, with_dof, candidate_spurious, accept);
+}
+
+// Stage 1: constant mode shapes, one free complex amplitude per mode and whitened channel. The
+// track roughness is chosen from the data by the rule below, unless given.
+// Roughness from the data, along the continuation smooth -> rough (each fit starts from the
+// previous one): a rougher fit is taken only while it pays for its extra effective parameters
+// by the BIC rule, RSS drop > ln(N) * (added effective parameters) * s^2, with s^2 = RSS / (N -
+// effective parameters) of the rougher fit (the residual's own variance, so a pre-onset noise
+// level that is off by a few tens of percent does not move the choice), but never below 1, the
+// whitened noise level: on noise-free data the residual is the arm's model error, and with the
+// former 60 dB noise floor tracks rough enough to chase it made every frame fail the
+// frequency-SD validity test (90 deg constant K: K_valid on 0 of 485 frames). Whitened units.
+// Once the continuation has taken a fit rougher than the smoothest (from its third candidate
+// on), each candidate is also fitted from the start tracks and the lower cost kept: the data
+// have said the smooth fits miss something, and a change the smooth tracks could not follow
+// (sharp K: x5 within 0.15 s) leaves them in a basin whose phase no local step undoes, which
+// the continuation would carry to the roughest candidate (docs/tfa_modal.md, "Two starts").
+// The second-order terms are offered at the smoothest roughness, after the fit without them,
+// and kept only when they pay for their 3 C parameters by the same rule: on a record where the
+// distortion is below the noise they could otherwise trade with a mode that has sunk into it
+// (test a_mode_sinking_into_the_noise_is_flagged_invalid).
+// False when not even the smoothest candidate gives a usable fit.
+bool WholeFit::roughness_continuation() {
+  const int so_offer = options_.second_order ? strongest_mode() : -1;
+  // A spurious candidate is skipped, not the end of the continuation: smooth tracks that cannot
+  // follow a stiffness change may lend a barely excited mode to the strong one's amplitude change
+  // (cancelling modes), and the next roughness, from its tracks, may separate them again
+  // (docs/tfa_modal.md, "Cancelling modes").
+  Eigen::VectorXd start = theta_, skipped;
+  const bool with_dof =
+      grid_.size() > 1 || options_.decay_tie < 0.0 || options_.frequency_tie < 0.0 || so_offer >= 0;
+  for (std::size_t g = 0; g < grid_.size(); ++g) {
+    if (!try_candidate(grid_[g], ties_, with_dof, start, rougher_rule(), g >= 2, &skipped)) {
+      if (skipped.size() == 0) break;
+      start = skipped;
+      continue;
+    }
+    chosen_ = g;
+    if (g == 0 && so_offer >= 0) {
+      so_mode_ = so_offer;
+      if (!try_candidate(grid_[0], ties_, true, theta_, rougher_rule())) so_mode_ = -1;
+    }
+    if (g == 0) smoothest_ = theta_;
+    start = theta_;
+  }
+  if (!taken_) return false;
+  result_.track_roughness = grid_[chosen_];
+  return true;
+}
+
+// Decay tie (part 0), then frequency tie (part 1) (TrackTie; both opt-in), each its prior SD
+// `option`, or, when negative, from the data at the chosen roughness along the continuation
+// loose -> tight, 0.3 .. 0.003 (each fit starting from the previous one): a tighter tie is taken
+// while the fit it loses stays within what the same rule grants for the effective parameters it
+// saves, RSS rise <= ln(N) * (saved effective parameters) * s^2. When the modes' decays
+// (frequencies) do not change by a common factor the RSS rises faster and the search stops (no
+// tie when even the loosest is refused). The tie's ratios go in after the tracks (the decay
+// tie's first).
+void WholeFit::search_tie(int part, double option) {
+  std::vector<double> tie_grid = {option};
+  if (option < 0.0) tie_grid = {0.3, 0.1, 0.03, 0.01, 0.003};
+  TrackTies candidate = ties_;
+  TrackTie& tie = candidate[part];
+  tie.scale.resize(modes_);
+  const Eigen::Index before = taken_->first_ratio(part);  // with the ties taken so far
+  Eigen::VectorXd tied(theta_.size() + modes_ - 1);
+  tied.head(before) = theta_.head(before);
+  tied.tail(theta_.size() - before) = theta_.tail(theta_.size() - before);
+  for (int j = 0; j < modes_; ++j) {
+    const auto coefficients = theta_.segment((2 * j + part) * m_, m_);
+    tie.scale(j) = std::max(coefficients.cwiseAbs().mean(), 1e-3);
+    if (j > 0) tied(before + j - 1) = coefficients.mean() / theta_.segment(part * m_, m_).mean();
+  }
+  if (!tied.segment(before, modes_ - 1).allFinite()) tied.segment(before, modes_ - 1).setOnes();
+  const Accept tighter = [&](double rss, double dof, double price) {
+    return option > 0.0 || rss - taken_rss_ <= price * (taken_dof_ - dof);
+  };
+  for (const double sd : tie_grid) {
+    tie.sd = sd;
+    if (!try_candidate(result_.track_roughness, candidate, true,
+                       ties_[part].sd > 0.0 ? theta_ : tied, tighter))
+      break;
+    ties_[part] = tie;
+  }
+}
+
+// Local roughness: one roughness for the whole record must be as rough as the sharpest bend of
+// any track (a stiffness change within 0.15 s), and then lets every track wobble elsewhere.
+// When the continuation chose tracks rougher than the smoothest, each knot gets a roughness of
+// its own: a Student-t prior (nu = local_roughness_dof, scale s) on the vector of the 2 n
+// tracks' second differences at the knot, fitted by EM: sd_i^2 = (nu s^2 + |D_i theta|^2) /
+// (nu + 2 n), then the fit with those SDs (from the previous fit), until no sd_i moves by more
+// than 5 % (at most 10 sweeps). The scale runs up the grid below stage 1's roughness (each
+// from the previous fit) while the same BIC rule, taken both ways, prefers it: rss + price dof
+// below the current fit's (first the uniform one). Its dof: the effective parameters at the
+// SDs, plus one per bent knot, where the bends exceed the prior's scale (|D_i theta|^2 > nu
+// s^2: the data, not the prior, set that SD), a parameter estimated from the data. Without
+// that count a smooth change (sigmoid K) takes a local roughness that trades its smooth bend
+// for a few kinks (docs/tfa_modal.md, "Local roughness").
+void WholeFit::local_roughness() {
+  if (!(options_.local_roughness_dof > 0.0 && options_.track_roughness < 0.0 && taken_ &&
+        taken_sized_ && uniform_roughness_ > grid_[0]))
+    return;
+  const Eigen::MatrixXd d2 = track_.second_differences();
+  const double nu = options_.local_roughness_dof;
+  auto bent_knots = [&](const Eigen::VectorXd& sd, double scale) {
+    return static_cast<double>(
+        (sd.array().square() * (nu + 2 * modes_) > 2.0 * nu * scale * scale).count());
+  };
+  auto em_sd = [&](const Eigen::VectorXd& at, double scale) {
+    Eigen::VectorXd sd(d2.rows());
+    for (Eigen::Index i = 0; i < d2.rows(); ++i) {
+      double squares = 0.0;
+      for (int b = 0; b < 2 * modes_; ++b)
+        squares += std::pow(d2.row(i).dot(at.segment(b * m_, m_)), 2);
+      sd(i) = std::sqrt((nu * scale * scale + squares) / (nu + 2 * modes_));
+    }
+    return sd;
+  };
+  for (std::size_t g = 0; g < grid_.size() && grid_[g] < uniform_roughness_; ++g) {
+    Eigen::VectorXd candidate = theta_;
+    Eigen::VectorXd sd = em_sd(candidate, grid_[g]);
+    std::unique_ptr<VpProblem> problem;
+    StageOutcome o;
+    // sd stays the SDs of the last fit (problem) when the sweeps end.
+    for (int sweep = 1;; ++sweep) {
+      problem = current_problem(prior_rows(track_, modes_, sd), ties_);
+      o = solve(*problem, candidate, options_.max_iterations);
+      result_.iterations += o.iterations;
+      if (!o.usable || sweep == 10) break;
+      const Eigen::VectorXd next = em_sd(candidate, grid_[g]);
+      const double moved = (next.array() / sd.array()).log().abs().maxCoeff();
+      if (moved < std::log(1.05)) break;
+      sd = next;
+    }
+    const double knots = bent_knots(sd, grid_[g]);
+    const Accept lower = [&](double rss, double dof, double price) {
+      return rss + price * (dof + knots) < taken_rss_ + price * (taken_dof_ + local_knots_);
+    };
+    if (!take_fit(problem, candidate, o, true, o.usable && spurious(*problem, candidate), lower))
+      break;
+    local_knots_ = knots;
+    roughness_sd_ = sd;
+    result_.track_roughness = grid_[g];
+  }
+  if (result_.track_roughness != uniform_roughness_) {
+    result_.roughness_sd = roughness_sd_;
+    const Eigen::Index knots = d2.rows();
+    result_.roughness_t_s =
+        p_.t_s(0) + track_.spacing_s() * Eigen::ArrayXd::LinSpaced(knots, 0.0, knots - 1.0);
+  }
+}
+
+// GCV's shape weight for design `d` at the tracks `at`.
+double WholeFit::gcv_weight(const Design& d, const Eigen::VectorXd& at,
+                            const Eigen::VectorXd& roughness) const {
+  const VpProblem probe =
+      vp_problem(d, 1.0, prior_rows(track_, modes_, roughness), ties_, so_mode_);
+  return choose_shape_weight(probe, at, p_);
+}
+
+// The shape design of stage 2 from a constant-shape fit: the common amplitude and phase of mode
+// j stay with alpha_j, omega_j (eq 47): only the components orthogonal (in whitened space) to
+// its fitted shape u_j vary, as cubic splines whose first differences are penalized with the
+// weight given or chosen by GCV at the fit's tracks.
+WholeFit::Design WholeFit::shape_design(const VpProblem& fitted, const Eigen::VectorXd& at,
+                                        const Eigen::VectorXd& roughness) const {
+  Eigen::VectorXd beta(fitted.linear());
+  std::vector<double> scratch(fitted.residuals());
+  fitted.evaluate(at.data(), scratch.data(), nullptr, &beta);
+  const UniformCubicBspline shape(length_s_, options_.shape_knot_spacing_s);
+  Design d;
+  d.functions.resize(n_, 1 + shape.size());
+  d.functions << constant_, shape.values(p_.tau_s);
+  for (int j = 0; j < modes_; ++j) {
+    Eigen::VectorXcd u(c_);
+    for (int k = 0; k < c_; ++k) u(k) = Complex(beta(2 * (j * c_ + k)), beta(2 * (j * c_ + k) + 1));
+    if (!(u.norm() > 0.0)) u = Eigen::VectorXcd::Unit(c_, 0);
+    Eigen::MatrixXcd basis = complete_basis(u);
+    // Each varying direction turned so that a real coefficient changes the shape in phase
+    // with u (amplitude ratios: a real rotation of a real shape) and an imaginary one changes
+    // the phases between joints: the phase factor penalizes the latter apart. psi makes u
+    // most nearly real, u ~ e^{i psi} r (0.5 arg sum u_k^2); likewise for the direction.
+    const double psi = 0.5 * std::arg(u.cwiseProduct(u).sum());
+    for (int b = 1; b < c_; ++b) {
+      const double own = 0.5 * std::arg(basis.col(b).cwiseProduct(basis.col(b)).sum());
+      basis.col(b) *= std::polar(1.0, psi - own);
+    }
+    d.terms.push_back({j, basis.col(0), 0});
+    for (int b = 1; b < c_; ++b)
+      for (int q = 0; q < shape.size(); ++q) {
+        if (q > 0)
+          d.pairs.emplace_back(static_cast<int>(d.terms.size()) - 1,
+                               static_cast<int>(d.terms.size()));
+        d.terms.push_back({j, basis.col(b), 1 + q});
+      }
+  }
+  d.phase_factor = options_.shape_phase_factor;
+  d.weight = options_.shape_weight >= 0.0 ? options_.shape_weight : gcv_weight(d, at, roughness);
+  return d;
+}
+
+// Fits design `d` at `roughness` from theta_; when usable, takes it (theta_, outcome_, `into`).
+bool WholeFit::fit_design(const Design& d, const Eigen::VectorXd& roughness,
+                          std::unique_ptr<VpProblem>& into) {
+  auto problem = std::make_unique<VpProblem>(
+      vp_problem(d, d.weight, prior_rows(track_, modes_, roughness), ties_, so_mode_));
+  Eigen::VectorXd candidate = theta_;
+  const StageOutcome o = solve(*problem, candidate, options_.max_iterations);
+  result_.iterations += o.iterations;
+  if (!o.usable) return false;
+  theta_ = candidate;
+  outcome_ = o;
+  into = std::move(problem);
+  return true;
+}
+
+// Stage 2: slowly varying mode shapes, at the chosen tracks. With the weight from the data they
+// are kept only when they pay for their effective parameters (lower_bic, as the shape refit
+// below): the shapes stay put when the data do not ask them to move. GCV's weight alone can
+// let them absorb noise (10 dB trials, docs/tfa_modal.md). A weight given is the user's choice.
+void WholeFit::shape_stage() {
+  if (!(outcome_.usable && shapes_)) return;
+  const Design d = shape_design(*final_, theta_, roughness_sd_);
+  std::unique_ptr<VpProblem> constant_shapes = std::move(final_);
+  const Eigen::VectorXd constant_theta = theta_;
+  const StageOutcome constant_outcome = outcome_;
+  // The constant-shape fit is the last candidate taken: its size is known when it was counted.
+  std::optional<std::pair<double, double>> constant_size;
+  if (taken_sized_) constant_size = std::make_pair(taken_rss_, taken_dof_);
+  if (fit_design(d, roughness_sd_, final_) &&
+      (options_.shape_weight >= 0.0 ||
+       lower_bic(*final_, theta_, *constant_shapes, constant_theta, constant_size))) {
+    result_.shape_weight = d.weight;
+  } else {
+    final_ = std::move(constant_shapes);
+    theta_ = constant_theta;
+    outcome_ = constant_outcome;
+  }
+}
+
+// Shape refit. Stage 1's continuation runs with constant shapes, so mode shapes that change
+// within the trial (only k22 modulated, a rotating stiffness ellipse) can only be followed by
+// rougher tracks, which then trade with the shapes (docs/tfa_modal.md, "Shape refit"). When
+// it chose tracks rougher than the smoothest, the other explanation is fitted too: the shape
+// stage from the smoothest fit, the roughness continuation (same rule) in it up to, not
+// including, stage 1's choice, the shape weight re-chosen by GCV at its tracks. It replaces
+// the result when its BIC (effective parameters, the shapes' by the trace of their penalized
+// smoother) is lower and its frequency tracks do not cross.
+void WholeFit::shape_refit() {
+  if (!(options_.shape_refit && outcome_.usable && shapes_ && options_.shape_weight < 0.0 &&
+        grid_.size() > 1 && smoothest_.size() > 0))
+    return;
+  // The refit is untied (its start, the smoothest fit, has no ratios): with a tie taken it is
+  // the untied explanation by changing shapes, which the BIC then weighs against the tied one.
+  const TrackTies kept_ties = ties_;
+  ties_ = TrackTies{};
+  const VpProblem base = vp_problem(constant_design_, 0.0, prior_rows(track_, modes_, grid_[0]),
+                                    TrackTies{}, so_mode_);
+  design_ = shape_design(base, smoothest_, constant_roughness(track_, grid_[0]));
+  std::unique_ptr<VpProblem> first_problem = std::move(final_);
+  const Eigen::VectorXd first_theta = theta_;
+  const StageOutcome first_outcome = outcome_;
+  taken_.reset();
+  taken_rss_ = std::numeric_limits<double>::infinity();
+  taken_dof_ = 0.0;
+  double refit_roughness = -1.0;
+  // Every candidate from two starts (the continuation's fit and the start tracks): the start
+  // tracks were not fitted in this design, so they are a start of their own from the first
+  // candidate on (stage 1 takes them from the third).
+  Eigen::VectorXd refit_start = smoothest_, refit_skipped;  // spurious candidates skipped
+  for (std::size_t g = 0; g < grid_.size() && grid_[g] < uniform_roughness_; ++g) {
+    if (!try_candidate(grid_[g], ties_, true, refit_start, rougher_rule(), true, &refit_skipped)) {
+      if (refit_skipped.size() == 0) break;
+      refit_start = refit_skipped;
+      continue;
+    }
+    refit_start = theta_;
+    refit_roughness = grid_[g];
+  }
+  bool take_refit = false;
+  // Tracks that cross or come close: on a coupled arm the two frequencies avoid each other.
+  // Two modes whose frequencies lie within a quarter of the shape knots' rate, 1 / (4 h),
+  // beat with a period of four shape knots or more, which the shape splines follow: one mode
+  // with a varying shape then explains both (a crossing is one mode's shape taking over the
+  // other's), and the data cannot tell the two explanations apart. Such a refit is not taken.
+  const double min_gap_rad_per_s = 2.0 * M_PI / (4.0 * options_.shape_knot_spacing_s);
+  auto too_close = [&](const Eigen::VectorXd& at) {
+    const Eigen::ArrayXXd omega = frequency_tracks(at);
+    for (int j = 0; j < modes_; ++j)
+      for (int l = j + 1; l < modes_; ++l) {
+        const Eigen::ArrayXd gap = omega.col(j) - omega.col(l);
+        if (gap.maxCoeff() > 0.0 && gap.minCoeff() < 0.0) return true;
+        if (gap.abs().minCoeff() < min_gap_rad_per_s) return true;
+      }
+    return false;
+  };
+  if (taken_) {
+    Design again = design_;
+    const Eigen::VectorXd refit_sd = constant_roughness(track_, refit_roughness);
+    again.weight = gcv_weight(design_, theta_, refit_sd);
+    if (again.weight != design_.weight && fit_design(again, refit_sd, taken_))
+      design_.weight = again.weight;
+    // The first fit's size, its bent knots counted when it has a local roughness.
+    std::optional<std::pair<double, double>> first_size;
+    double first_rss = 0.0, first_dof = 0.0;
+    if (local_knots_ > 0.0 && fit_size(*first_problem, first_theta, true, first_rss, first_dof))
+      first_size = std::make_pair(first_rss, first_dof + local_knots_);
+    take_refit =
+        lower_bic(*taken_, theta_, *first_problem, first_theta, first_size) && !too_close(theta_);
+  }
+  if (take_refit) {
+    final_ = std::move(taken_);
+    result_.track_roughness = refit_roughness;
+    result_.roughness_sd.resize(0);
+    result_.roughness_t_s.resize(0);
+    result_.shape_weight = design_.weight;
+    result_.shape_refit = true;
+    result_.decay_tie = result_.frequency_tie = 0.0;
+  } else {
+    final_ = std::move(first_problem);
+    theta_ = first_theta;
+    outcome_ = first_outcome;
+    ties_ = kept_ties;
+  }
+}
+
+// The final evaluation of the fit taken (final_ at theta_) into result_: the residual, BIC and
+// posterior covariance, each mode's tracks, shapes, ANR and validity, the real terms, offsets and
+// second-order terms, and the fitted response.
+void WholeFit::finish() {
+  const VpProblem& fp = *final_;
+  FinalFit f(fp);
+  Eigen::VectorXd residual(fp.residuals());
+  RowMajor jacobian(fp.residuals(), fp.parameters());
+  if (!outcome_.usable || !fp.evaluate(theta_.data(), residual.data(), jacobian.data(), &f.beta)) {
+    result_.status = Status::failure("modal fit: the fit failed: " + outcome_.message);
+    return;
+  }
+  result_.converged = outcome_.converged;
+  if (!outcome_.converged) {
+    result_.warning = "modal fit: no convergence in " + std::to_string(options_.max_iterations) +
+                      " iterations (" + outcome_.message + "); every valid flag is false";
+  }
+  const int rd = fp.data_rows();
+  const double rss = residual.head(rd).squaredNorm();
+  result_.residual_rms_whitened = std::sqrt(rss / rd);
+  // The bent knots of a local roughness count as parameters, as in the continuation's rule.
+  result_.effective_parameters = fit_effective_parameters(fp, theta_, jacobian) +
+                                 (result_.roughness_sd.size() > 0 ? local_knots_ : 0.0);
+  result_.bic =
+      rd * std::log(rss) + std::log(static_cast<double>(rd)) * result_.effective_parameters;
+  f.covariance = posterior_covariance(fp, residual, jacobian);
+
+  fp.oscillations(theta_.data(), f.e);
+  f.slopes = track_.first_derivatives(p_.tau_s);
+  f.curvatures = track_.second_derivatives(p_.tau_s);
+  // Time functions and their derivatives as used by the final terms.
+  f.functions = constant_;
+  f.function_slopes = Eigen::MatrixXd::Zero(n_, 1);
+  if (fp.terms().size() != static_cast<size_t>(modes_ * c_) || fp.penalty_rows() > 0) {
+    const UniformCubicBspline shape(length_s_, options_.shape_knot_spacing_s);
+    f.functions.resize(n_, 1 + shape.size());
+    f.functions << constant_, shape.values(p_.tau_s);
+    f.function_slopes.resize(n_, 1 + shape.size());
+    f.function_slopes << Eigen::MatrixXd::Zero(n_, 1), shape.first_derivatives(p_.tau_s);
+  }
+  result_.fitted = Eigen::MatrixXd::Zero(n_, c_);
+  for (int j = 0; j < modes_; ++j) result_.modes.push_back(mode_track(j, f));
+  // Real terms: whitened amplitudes b_r back to channel units L b_r.
+  Eigen::MatrixXd er;
+  fp.real_exponentials(theta_.data(), er);
+  for (int r = 0; r < real_; ++r) {
+    RealTerm rt;
+    const int index = fp.first_rate() + r;
+    rt.rate_per_s = theta_(index);
+    rt.rate_sd_per_s = std::sqrt(std::max(0.0, f.covariance(index, index)));
+    rt.amplitude = p_.cholesky * f.beta.segment(fp.complex_linear() + r * c_, c_);
+    result_.fitted += er.col(r) * rt.amplitude.transpose();
+    result_.real_terms.push_back(std::move(rt));
+  }
+  result_.offset_rad = Eigen::VectorXd::Zero(c_);
+  if (fp.first_so() > fp.first_offset()) {  // whitened offsets back to channel units
+    result_.offset_rad = p_.cholesky * f.beta.segment(fp.first_offset(), c_);
+    result_.fitted.rowwise() += result_.offset_rad.transpose();
+  }
+  result_.second_order_mode = -1;
+  if (fp.second_order_mode() >= 0) {  // the distortion's part of the model, in channel units
+    const int j = fp.second_order_mode();
+    Eigen::MatrixXd whitened(n_, c_);
+    for (Eigen::Index i = 0; i < n_; ++i) {
+      const Complex e2 = f.e(i, j) * f.e(i, j);
+      for (int k = 0; k < c_; ++k) {
+        const int col = fp.first_so() + 3 * k;
+        whitened(i, k) = std::norm(f.e(i, j)) * f.beta(col) +
+                         (Complex(f.beta(col + 1), f.beta(col + 2)) * e2).real();
+      }
+    }
+    result_.fitted += whitened * p_.cholesky.transpose();
+  }
+  const std::vector<int> order = finish_modes(p_, options_, result_.modes);
+  for (std::size_t i = 0; i < order.size(); ++i)
+    if (order[i] == fp.second_order_mode()) result_.second_order_mode = static_cast<int>(i);
+  if (options_.lost_track_time_s >= 0.0)
+    continue_lost_tracks(result_.t_s, options_.lost_track_time_s, options_.anr_threshold_db,
+                         result_.modes);
+}
+
+// Mode j of the final fit `f`: its tracks with their SDs, shape, envelopes, phases, ANR and
+// validity; adds its part of the model to result_.fitted.
+ModeTrack WholeFit::mode_track(int j, const FinalFit& f) {
+  const VpProblem& fp = f.fp;
+  const Eigen::MatrixXd& values = track_values_;
+  const double dt_s = 1.0 / p_.rate_hz;
+  ModeTrack mt;
+  const Eigen::VectorXd ca = theta_.segment(2 * j * m_, m_),
+                        cw = theta_.segment((2 * j + 1) * m_, m_);
+  mt.alpha_per_s = values * ca;
+  if (j > 0 && ties_[0].sd > 0.0) mt.decay_ratio = theta_(fp.first_ratio(0) + j - 1);
+  if (j > 0 && ties_[1].sd > 0.0) mt.frequency_ratio = theta_(fp.first_ratio(1) + j - 1);
+  mt.omega_rad_per_s = values * cw;
+  mt.alpha_dot_per_s2 = f.slopes * ca;
+  mt.omega_dot_rad_per_s2 = f.slopes * cw;
+  mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
+  // d alpha_j(t) / d (decay, frequency coefficients) (T x 2M): the decay coefficients alone, or
+  // with damping tracks alpha = a - omega' / (2 omega) (a = -Gamma the spline) also the
+  // frequency's, -(B' / (2 omega) - omega' B / (2 omega^2)).
+  Eigen::MatrixXd alpha_gradient = Eigen::MatrixXd::Zero(n_, 2 * m_);
+  alpha_gradient.leftCols(m_) = values;
+  if (fp.damping_tracks()) {
+    const Eigen::ArrayXd w = mt.omega_rad_per_s.array(), w_dot = mt.omega_dot_rad_per_s2.array();
+    const Eigen::ArrayXd w_ddot = (f.curvatures * cw).array();
+    mt.alpha_per_s.array() -= w_dot / (2.0 * w);
+    mt.alpha_dot_per_s2.array() -= w_ddot / (2.0 * w) - w_dot.square() / (2.0 * w.square());
+    alpha_gradient.rightCols(m_) = -(f.slopes.array().colwise() / (2.0 * w) -
+                                     values.array().colwise() * (w_dot / (2.0 * w.square())))
+                                        .matrix();
+  }
+  // Mode j's decay and frequency coefficients are adjacent in theta: one 2M x 2M block.
+  const Eigen::MatrixXd cov_aw = f.covariance.block(2 * j * m_, 2 * j * m_, 2 * m_, 2 * m_);
+  const Eigen::MatrixXd cov_w = cov_aw.bottomRightCorner(m_, m_);
+  mt.alpha_sd_per_s =
+      ((alpha_gradient * cov_aw).cwiseProduct(alpha_gradient)).rowwise().sum().cwiseSqrt();
+  mt.frequency_sd_hz =
+      ((values * cov_w).cwiseProduct(values)).rowwise().sum().cwiseSqrt() / (2.0 * M_PI);
+  // Whitened shape w_j(t) and its slope, then channel units a_j = L w_j.
+  Eigen::MatrixXcd w = Eigen::MatrixXcd::Zero(n_, c_), w_dot = Eigen::MatrixXcd::Zero(n_, c_);
+  for (size_t t = 0; t < fp.terms().size(); ++t) {
+    const LinearTerm& term = fp.terms()[t];
+    if (term.mode != j) continue;
+    const Complex coef(f.beta(2 * t), f.beta(2 * t + 1));
+    for (int i = 0; i < n_; ++i) {
+      w.row(i) += coef * f.functions(i, term.function) * term.direction.transpose();
+      w_dot.row(i) += coef * f.function_slopes(i, term.function) * term.direction.transpose();
+    }
+  }
+  const Eigen::MatrixXcd lower = p_.cholesky.cast<Complex>();
+  mt.shape = w * lower.transpose();
+  const Eigen::MatrixXcd shape_dot = w_dot * lower.transpose();
+  const std::vector<Eigen::MatrixXd>& metric = from_.metric;
+  if (!metric.empty()) {
+    // The modal coordinate q_j = |a_j|_M e^{Re Phi_j} (docs/tfa_modal.md, "Modal amplitude"):
+    // d/dt ln q_j adds Re(a^H M a' + a^H M' a / 2) / |a|_M^2 to alpha_j, and its phase rate
+    // Im(a^H M a') / |a|_M^2 (the M-weighted mean of the channels') goes to omega_j.
+    Eigen::VectorXd d_alpha(n_), d_omega(n_);
+    for (int i = 0; i < n_; ++i) {
+      const Eigen::VectorXcd a = mt.shape.row(i).transpose();
+      const Eigen::VectorXcd a_dot = shape_dot.row(i).transpose();
+      const double norm2 = a.dot(metric[i] * a).real();  // a^H M a, |a|_M^2
+      const Complex rate = a.dot(metric[i] * a_dot) + 0.5 * a.dot(from_.metric_dot[i] * a);
+      d_alpha(i) = norm2 > 0.0 ? rate.real() / norm2 : 0.0;
+      d_omega(i) = norm2 > 0.0 ? rate.imag() / norm2 : 0.0;
+    }
+    mt.alpha_per_s += d_alpha;
+    mt.omega_rad_per_s += d_omega;
+    Eigen::MatrixXd corrections(n_, 2);
+    corrections << d_alpha, d_omega;
+    const Eigen::MatrixXd slopes_of_corrections = central_differences(corrections, dt_s);
+    mt.alpha_dot_per_s2 += slopes_of_corrections.col(0);
+    mt.omega_dot_rad_per_s2 += slopes_of_corrections.col(1);
+    mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
+  }
+  mt.envelope.resize(n_, c_);
+  mt.phase_rad.resize(n_, c_);
+  mt.log_envelope_rate_per_s.resize(n_, c_);
+  mt.anr_db.resize(n_);
+  mt.valid.resize(n_);
+  const Eigen::VectorXd log_growth = f.e.col(j).cwiseAbs().array().log().matrix();  // Re Phi_j
+  const Eigen::VectorXd phase_integral = integrals_ * cw;                           // Im Phi_j
+  Eigen::VectorXd shape_phase(c_);
+  for (int i = 0; i < n_; ++i) {
+    for (int k = 0; k < c_; ++k) {
+      const Complex a = mt.shape(i, k);
+      mt.envelope(i, k) = std::abs(a) * std::exp(log_growth(i));
+      double phase = std::arg(a);  // unwrapped along time: the shape phase varies slowly
+      if (i > 0) phase += 2.0 * M_PI * std::round((shape_phase(k) - phase) / (2.0 * M_PI));
+      shape_phase(k) = phase;
+      mt.phase_rad(i, k) = phase + phase_integral(i);
+      mt.log_envelope_rate_per_s(i, k) =
+          mt.alpha_per_s(i) +
+          (std::norm(a) > 0.0 ? (shape_dot(i, k) * std::conj(a)).real() / std::norm(a) : 0.0);
+      result_.fitted(i, k) += (a * f.e(i, j)).real();
+    }
+    mt.anr_db(i) = 10.0 * std::log10(0.5 * w.row(i).squaredNorm() * std::norm(f.e(i, j)));
+    mt.valid(i) = result_.status.ok && result_.converged &&
+                  mt.anr_db(i) >= options_.anr_threshold_db &&
+                  mt.frequency_sd_hz(i) <= options_.max_frequency_sd_hz &&
+                  mt.omega_rad_per_s(i) > 0.0 && std::isfinite(mt.alpha_per_s(i));
+  }
+  return mt;
+}
+
 // One fit from `from` with the decay splines of options.decay_tracks (alpha or gamma; sliding:
 // alpha).
 DampedModesResult fit_one(const Start& from, const DampedModesOptions& options) {
-  const Prepared& p = from.p;
-  const std::vector<Eigen::MatrixXd>& metric = from.metric;
-  const std::vector<Eigen::MatrixXd>& metric_dot = from.metric_dot;
-  const UniformCubicBspline& track = from.track;
-  const int real = from.real;
   const StartPencils& pencils = from.pencils;
-  const double dt_s = 1.0 / p.rate_hz;
-  const int n = static_cast<int>(p.y.rows());
-  const int c = static_cast<int>(p.y.cols());
-  const int modes = options.modes;
   DampedModesResult result;
   result.decay_tracks =
       options.decay_tracks == DecayTracks::gamma && options.design == ModalDesign::whole
           ? DecayTracks::gamma
           : DecayTracks::alpha;
-  result.t_s = p.t_s;
-  result.rate_hz = p.rate_hz;
-  result.noise_covariance = p.noise_cov;
-  result.data = p.y;
+  result.t_s = from.p.t_s;
+  result.rate_hz = from.p.rate_hz;
+  result.noise_covariance = from.p.noise_cov;
+  result.data = from.p.y;
   result.start = pencils.global;
   if (!result.start.status.ok) {
     result.status = Status::failure(
@@ -1184,696 +2004,9 @@ DampedModesResult fit_one(const Start& from, const DampedModesOptions& options) 
              : ""));
     return result;
   }
-  if (options.design == ModalDesign::sliding) return fit_sliding(p, options, pencils, real, result);
-  const int m = track.size();
-  const Eigen::MatrixXd integrals = track.integrals(p.tau_s);
-  const Eigen::MatrixXd track_values = track.values(p.tau_s);
-  // With damping tracks the problem needs the basis values too (VpProblem).
-  const bool damping_tracks = result.decay_tracks == DecayTracks::gamma;
-  const Eigen::MatrixXd damping_values = damping_tracks ? track_values : Eigen::MatrixXd();
-  Eigen::VectorXd theta(2 * modes * m + real);
-  theta.head(2 * modes * m) = start_tracks(p, track, pencils, options);
-  theta.tail(real) = pencils.global.real_rate_per_s;
-  const Eigen::VectorXd cold = theta;  // the start tracks, the continuation's second start
-
-  // Stage 1: constant mode shapes, one free complex amplitude per mode and whitened channel. The
-  // track roughness is chosen from the data by the rule below, unless given.
-  std::vector<LinearTerm> terms;
-  for (int j = 0; j < modes; ++j)
-    for (int k = 0; k < c; ++k) terms.push_back({j, Eigen::VectorXcd::Unit(c, k), 0});
-  const Eigen::MatrixXd constant = Eigen::MatrixXd::Ones(n, 1);
-  std::vector<double> grid = {options.track_roughness};
-  if (options.track_roughness < 0.0) grid = {0.003, 0.01, 0.03, 0.1, 0.3, 1.0, 3.0};
-  // Roughness from the data, along the continuation smooth -> rough (each fit starts from the
-  // previous one): a rougher fit is taken only while it pays for its extra effective parameters
-  // by the BIC rule, RSS drop > ln(N) * (added effective parameters) * s^2, with s^2 = RSS / (N -
-  // effective parameters) of the rougher fit (the residual's own variance, so a pre-onset noise
-  // level that is off by a few tens of percent does not move the choice), but never below 1, the
-  // whitened noise level: on noise-free data the residual is the arm's model error, and with the
-  // former 60 dB noise floor tracks rough enough to chase it made every frame fail the
-  // frequency-SD validity test (90 deg constant K: K_valid on 0 of 485 frames). Whitened units.
-  // Once the continuation has taken a fit rougher than the smoothest (from its third candidate
-  // on), each candidate is also fitted from the start tracks and the lower cost kept: the data
-  // have said the smooth fits miss something, and a change the smooth tracks could not follow
-  // (sharp K: x5 within 0.15 s) leaves them in a basin whose phase no local step undoes, which
-  // the continuation would carry to the roughest candidate (docs/tfa_modal.md, "Two starts").
-  //
-  // Decay tie, then frequency tie (TrackTie; both opt-in), each its prior SD from the data at
-  // the chosen roughness along the continuation loose -> tight, 0.3 .. 0.003 (each fit starting
-  // from the previous one): a tighter tie is taken while the fit it loses stays within what the
-  // same rule grants for the effective parameters it saves, RSS rise <= ln(N) * (saved effective
-  // parameters) * s^2. When the modes' decays (frequencies) do not change by a common factor the
-  // RSS rises faster and the search stops (no tie when even the loosest is refused). A tie leaves
-  // fewer effective parameters to each roughness step, so with a tie the roughness continuation
-  // then resumes from the chosen roughness, rougher fits taken by the same rule.
-  // The strongest mode at the start (largest whitened amplitude of the linear solution at the
-  // start tracks) gets the second-order terms.
-  int so_mode = -1;
-  if (options.second_order) {
-    const VpProblem probe(p, modes, integrals, damping_values, constant, terms, {}, 0.0,
-                          prior_rows(track, modes, grid[0]), TrackTies{}, real, options.offsets);
-    Eigen::VectorXd beta0;
-    std::vector<double> scratch(probe.residuals());
-    if (probe.evaluate(theta.data(), scratch.data(), nullptr, &beta0)) {
-      double best = -1.0;
-      for (int j = 0; j < modes; ++j) {
-        const double a = beta0.segment(2 * j * c, 2 * c).norm();
-        if (a > best) {
-          best = a;
-          so_mode = j;
-        }
-      }
-    }
-  }
-  // The linear design of the fits: constant mode shapes (stage 1) or slowly varying ones.
-  struct Design {
-    Eigen::MatrixXd functions;
-    std::vector<LinearTerm> terms;
-    std::vector<std::pair<int, int>> pairs;
-    double weight = 0.0;
-    double phase_factor = 1.0;  // the penalty on the shapes' phase part, relative to weight
-  };
-  Design design{constant, terms, {}, 0.0};
-  std::unique_ptr<VpProblem> stage1;
-  StageOutcome outcome;
-  TrackTies ties;
-  double previous_rss = std::numeric_limits<double>::infinity();
-  double previous_dof = 0.0;
-  bool previous_sized = false;  // previous_dof counted (fit_size with_dof)
-  // The track basis at the fitted samples (N x M), and omega_j(tau) of every mode at theta `at`
-  // (samples x modes), rad/s.
-  auto frequency_tracks = [&](const Eigen::VectorXd& at) {
-    Eigen::ArrayXXd omega(track_values.rows(), modes);
-    for (int j = 0; j < modes; ++j) omega.col(j) = track_values * at.segment((2 * j + 1) * m, m);
-    return omega;
-  };
-  // A fit that explains the response with fewer modes than it claims (docs/tfa_modal.md,
-  // "Merged modes" and "Cancelling modes"):
-  // - two modes whose frequency tracks agree within min_mode_separation of their mean at every
-  //   sample are one mode counted twice: a confluent pair (A + B tau) exp(Phi) with large,
-  //   cancelling amplitudes, not two modes of the arm (the validity checks flag every frame);
-  // - modes whose parts of the model cancel, their whitened energies over the record adding up to
-  //   more than kMaxCancellation times that of their sum, are the same with tracks apart (one
-  //   mode's amplitude change followed by two opposed oscillations);
-  // - second-order terms whose part of the model has more energy than the mode that carries
-  //   them are no small distortion of it: they stand in for a mode (the harmonic exp(2 Phi_j) of
-  //   a spurious mode at half a weak mode's frequency).
-  // The roughness continuation does not take such a candidate (it skips it), and of its two
-  // starts the one that is not spurious is preferred; a spurious fit from the continuation's
-  // start alone gets the start tracks as a second start.
-  auto spurious = [&](const VpProblem& problem, const Eigen::VectorXd& at) {
-    const Eigen::ArrayXXd omega = frequency_tracks(at);
-    for (int j = 0; j < modes; ++j)
-      for (int l = j + 1; l < modes; ++l) {
-        const Eigen::ArrayXd relative_gap =
-            (omega.col(j) - omega.col(l)).abs() / (0.5 * (omega.col(j).abs() + omega.col(l).abs()));
-        if (relative_gap.maxCoeff() < options.min_mode_separation) return true;
-      }
-    VpProblem::PartEnergies energy;
-    if (!problem.part_energies(at.data(), energy)) return true;
-    if (energy.modes.sum() > kMaxCancellation * energy.sum) return true;
-    const int so = problem.second_order_mode();
-    return so >= 0 && energy.distortion >= energy.modes(so);
-  };
-  // Takes the fit `o` at `candidate` of `problem` (stage1, theta, outcome, previous_*) when it is
-  // usable, not spurious (`spurious_fit`, the caller's test) and, once a fit has been taken,
-  // `accept` says so for its RSS, effective parameters and the BIC price ln(N) s^2, s^2 = RSS /
-  // (N - dof), never below 1; false otherwise.
-  auto take_fit = [&](std::unique_ptr<VpProblem>& problem, const Eigen::VectorXd& candidate,
-                      const StageOutcome& o, bool with_dof, bool spurious_fit, auto&& accept) {
-    double rss = 0.0, dof = 0.0;
-    if (!o.usable || !fit_size(*problem, candidate, with_dof, rss, dof)) return false;
-    if (spurious_fit) return false;
-    const double rows = problem->data_rows();
-    const double variance = std::max(1.0, rss / std::max(1.0, rows - dof));
-    if (stage1 && !accept(rss, dof, std::log(rows) * variance)) return false;
-    stage1 = std::move(problem);
-    outcome = o;
-    theta = candidate;
-    previous_rss = rss;
-    previous_dof = dof;
-    previous_sized = with_dof;
-    return true;
-  };
-  // Fits one candidate from `start` (with `restart`, also from the start tracks: the lower cost
-  // is kept); taken (take_fit) when `accept` says so for its RSS and effective parameters; false
-  // when it is not usable, spurious or not taken. A usable fit refused as spurious goes to
-  // `skipped` (when given; emptied otherwise).
-  auto try_candidate = [&](double roughness, const TrackTies& candidate_ties, bool with_dof,
-                           const Eigen::VectorXd& start, auto&& accept, bool restart = false,
-                           Eigen::VectorXd* skipped = nullptr) {
-    auto problem = std::make_unique<VpProblem>(
-        p, modes, integrals, damping_values, design.functions, design.terms, design.pairs,
-        design.weight, prior_rows(track, modes, roughness), candidate_ties, real, options.offsets,
-        so_mode, design.phase_factor);
-    Eigen::VectorXd candidate = start;
-    StageOutcome o;
-    // Spurious fits (`spurious`) are refused once a fit has been taken (something to fall back
-    // on).
-    const bool check = stage1 != nullptr;
-    auto is_spurious = [&](const StageOutcome& so, const Eigen::VectorXd& at) {
-      return check && so.usable && spurious(*problem, at);
-    };
-    bool candidate_spurious = false;  // is_spurious(o, candidate), once per fit
-    // Takes the fit from the start tracks (spurious or not: `other_spurious`) when it is usable
-    // and the kept one is not, or is spurious while it is not, or (equally spurious) has the
-    // higher cost: the same choice at any thread count (the continuation's on a tie).
-    auto take_cold = [&](const StageOutcome& from_cold, const Eigen::VectorXd& other) {
-      const bool other_spurious = is_spurious(from_cold, other);
-      const bool prefer =
-          from_cold.usable &&
-          (!o.usable ||
-           (candidate_spurious != other_spurious ? candidate_spurious : from_cold.cost < o.cost));
-      if (prefer) {
-        o = from_cold;
-        candidate = other;
-        candidate_spurious = other_spurious;
-      }
-    };
-    const bool other_start = start.size() == cold.size() && start != cold;
-    if (!restart || !other_start) {
-      o = solve(*problem, candidate, options.max_iterations);
-      result.iterations += o.iterations;
-      candidate_spurious = is_spurious(o, candidate);
-      // A spurious fit from the continuation: the start tracks get their chance.
-      if (other_start && candidate_spurious) {
-        Eigen::VectorXd other = cold;
-        const StageOutcome from_cold = solve(*problem, other, options.max_iterations);
-        result.iterations += from_cold.iterations;
-        take_cold(from_cold, other);
-      }
-    } else {
-      // Both starts, solved side by side (each with its own problem and work buffers).
-      const VpProblem twin(*problem);
-      Eigen::VectorXd other = cold;
-      StageOutcome from_cold;
-      data::parallel_for_index(2, [&](std::size_t k) {
-        if (k == 0)
-          o = solve(*problem, candidate, options.max_iterations);
-        else
-          from_cold = solve(twin, other, options.max_iterations);
-      });
-      result.iterations += o.iterations + from_cold.iterations;
-      candidate_spurious = is_spurious(o, candidate);
-      take_cold(from_cold, other);
-    }
-    if (skipped) *skipped = candidate_spurious ? candidate : Eigen::VectorXd();
-    return take_fit(problem, candidate, o, with_dof, candidate_spurious, accept);
-  };
-  auto rougher = [&](double rss, double dof, double price) {
-    return previous_rss - rss > price * (dof - previous_dof);
-  };
-  // The shape design of stage 2 from a constant-shape fit: the common amplitude and phase of mode
-  // j stay with alpha_j, omega_j (eq 47): only the components orthogonal (in whitened space) to
-  // its fitted shape u_j vary, as cubic splines whose first differences are penalized with the
-  // weight given or chosen by GCV at the fit's tracks.
-  const double length_s = p.tau_s(n - 1);
-  const bool shapes =
-      options.shape_knot_spacing_s > 0.0 && c > 1 && length_s > options.shape_knot_spacing_s;
-  // GCV's shape weight for design `d` at the tracks `at`.
-  auto gcv_weight = [&](const Design& d, const Eigen::VectorXd& at,
-                        const Eigen::VectorXd& roughness) {
-    const VpProblem probe(p, modes, integrals, damping_values, d.functions, d.terms, d.pairs, 1.0,
-                          prior_rows(track, modes, roughness), ties, real, options.offsets, so_mode,
-                          d.phase_factor);
-    return choose_shape_weight(probe, at, p);
-  };
-  auto shape_design = [&](const VpProblem& fitted, const Eigen::VectorXd& at,
-                          const Eigen::VectorXd& roughness) {
-    Eigen::VectorXd beta(fitted.linear());
-    std::vector<double> scratch(fitted.residuals());
-    fitted.evaluate(at.data(), scratch.data(), nullptr, &beta);
-    const UniformCubicBspline shape(length_s, options.shape_knot_spacing_s);
-    Design d;
-    d.functions.resize(n, 1 + shape.size());
-    d.functions << constant, shape.values(p.tau_s);
-    for (int j = 0; j < modes; ++j) {
-      Eigen::VectorXcd u(c);
-      for (int k = 0; k < c; ++k) u(k) = Complex(beta(2 * (j * c + k)), beta(2 * (j * c + k) + 1));
-      if (!(u.norm() > 0.0)) u = Eigen::VectorXcd::Unit(c, 0);
-      Eigen::MatrixXcd basis = complete_basis(u);
-      // Each varying direction turned so that a real coefficient changes the shape in phase
-      // with u (amplitude ratios: a real rotation of a real shape) and an imaginary one changes
-      // the phases between joints: the phase factor penalizes the latter apart. psi makes u
-      // most nearly real, u ~ e^{i psi} r (0.5 arg sum u_k^2); likewise for the direction.
-      const double psi = 0.5 * std::arg(u.cwiseProduct(u).sum());
-      for (int b = 1; b < c; ++b) {
-        const double own = 0.5 * std::arg(basis.col(b).cwiseProduct(basis.col(b)).sum());
-        basis.col(b) *= std::polar(1.0, psi - own);
-      }
-      d.terms.push_back({j, basis.col(0), 0});
-      for (int b = 1; b < c; ++b)
-        for (int q = 0; q < shape.size(); ++q) {
-          if (q > 0)
-            d.pairs.emplace_back(static_cast<int>(d.terms.size()) - 1,
-                                 static_cast<int>(d.terms.size()));
-          d.terms.push_back({j, basis.col(b), 1 + q});
-        }
-    }
-    d.phase_factor = options.shape_phase_factor;
-    d.weight = options.shape_weight >= 0.0 ? options.shape_weight : gcv_weight(d, at, roughness);
-    return d;
-  };
-  // Fits design `d` at `roughness` from theta; when usable, takes it (theta, outcome, `into`).
-  auto fit_design = [&](const Design& d, const Eigen::VectorXd& roughness,
-                        std::unique_ptr<VpProblem>& into) {
-    auto problem = std::make_unique<VpProblem>(
-        p, modes, integrals, damping_values, d.functions, d.terms, d.pairs, d.weight,
-        prior_rows(track, modes, roughness), ties, real, options.offsets, so_mode, d.phase_factor);
-    Eigen::VectorXd candidate = theta;
-    const StageOutcome o = solve(*problem, candidate, options.max_iterations);
-    result.iterations += o.iterations;
-    if (!o.usable) return false;
-    theta = candidate;
-    outcome = o;
-    into = std::move(problem);
-    return true;
-  };
-  // The second-order terms are offered at the smoothest roughness, after the fit without them,
-  // and kept only when they pay for their 3 C parameters by the same rule: on a record where the
-  // distortion is below the noise they could otherwise trade with a mode that has sunk into it
-  // (test a_mode_sinking_into_the_noise_is_flagged_invalid).
-  const int so_offer = so_mode;
-  so_mode = -1;
-  std::size_t chosen = 0;
-  Eigen::VectorXd smoothest;  // the smoothest constant-shape fit, where the shape stage may start
-  // A spurious candidate is skipped, not the end of the continuation: smooth tracks that cannot
-  // follow a stiffness change may lend a barely excited mode to the strong one's amplitude change
-  // (cancelling modes), and the next roughness, from its tracks, may separate them again
-  // (docs/tfa_modal.md, "Cancelling modes").
-  Eigen::VectorXd start = theta, skipped;
-  for (std::size_t g = 0; g < grid.size(); ++g) {
-    if (!try_candidate(grid[g], ties,
-                       grid.size() > 1 || options.decay_tie < 0.0 || options.frequency_tie < 0.0 ||
-                           so_offer >= 0,
-                       start, rougher, g >= 2, &skipped)) {
-      if (skipped.size() == 0) break;
-      start = skipped;
-      continue;
-    }
-    chosen = g;
-    if (g == 0 && so_offer >= 0) {
-      so_mode = so_offer;
-      if (!try_candidate(grid[0], ties, true, theta, rougher)) so_mode = -1;
-    }
-    if (g == 0) smoothest = theta;
-    start = theta;
-  }
-  if (!stage1) {
-    result.status = Status::failure("modal fit: no usable fit even with the smoothest tracks");
-    return result;
-  }
-  result.track_roughness = grid[chosen];
-  // The ties' search; their ratios go in after the tracks (the decay tie's first).
-  auto search_tie = [&](int part, double option) {
-    std::vector<double> tie_grid = {option};
-    if (option < 0.0) tie_grid = {0.3, 0.1, 0.03, 0.01, 0.003};
-    TrackTies candidate = ties;
-    TrackTie& tie = candidate[part];
-    tie.scale.resize(modes);
-    const Eigen::Index before = stage1->first_ratio(part);  // with the ties taken so far
-    Eigen::VectorXd tied(theta.size() + modes - 1);
-    tied.head(before) = theta.head(before);
-    tied.tail(theta.size() - before) = theta.tail(theta.size() - before);
-    for (int j = 0; j < modes; ++j) {
-      const auto coefficients = theta.segment((2 * j + part) * m, m);
-      tie.scale(j) = std::max(coefficients.cwiseAbs().mean(), 1e-3);
-      if (j > 0) tied(before + j - 1) = coefficients.mean() / theta.segment(part * m, m).mean();
-    }
-    if (!tied.segment(before, modes - 1).allFinite()) tied.segment(before, modes - 1).setOnes();
-    auto tighter = [&](double rss, double dof, double price) {
-      return option > 0.0 || rss - previous_rss <= price * (previous_dof - dof);
-    };
-    for (const double sd : tie_grid) {
-      tie.sd = sd;
-      if (!try_candidate(result.track_roughness, candidate, true,
-                         ties[part].sd > 0.0 ? theta : tied, tighter))
-        break;
-      ties[part] = tie;
-    }
-  };
-  if (modes > 1 && options.decay_tie != 0.0) search_tie(0, options.decay_tie);
-  if (modes > 1 && options.frequency_tie != 0.0) search_tie(1, options.frequency_tie);
-  result.decay_tie = ties[0].sd;
-  result.frequency_tie = ties[1].sd;
-  const bool any_tie = ties[0].sd > 0.0 || ties[1].sd > 0.0;
-  for (std::size_t g = chosen + 1; any_tie && g < grid.size(); ++g) {
-    if (!try_candidate(grid[g], ties, true, theta, rougher)) break;
-    result.track_roughness = grid[g];
-  }
-  const double uniform_roughness = result.track_roughness;  // stage 1's, for the shape refit
-  Eigen::VectorXd roughness_sd = constant_roughness(track, uniform_roughness);
-
-  // Local roughness: one roughness for the whole record must be as rough as the sharpest bend of
-  // any track (a stiffness change within 0.15 s), and then lets every track wobble elsewhere.
-  // When the continuation chose tracks rougher than the smoothest, each knot gets a roughness of
-  // its own: a Student-t prior (nu = local_roughness_dof, scale s) on the vector of the 2 n
-  // tracks' second differences at the knot, fitted by EM: sd_i^2 = (nu s^2 + |D_i theta|^2) /
-  // (nu + 2 n), then the fit with those SDs (from the previous fit), until no sd_i moves by more
-  // than 5 % (at most 10 sweeps). The scale runs up the grid below stage 1's roughness (each
-  // from the previous fit) while the same BIC rule, taken both ways, prefers it: rss + price dof
-  // below the current fit's (first the uniform one). Its dof: the effective parameters at the
-  // SDs, plus one per bent knot, where the bends exceed the prior's scale (|D_i theta|^2 > nu
-  // s^2: the data, not the prior, set that SD), a parameter estimated from the data. Without
-  // that count a smooth change (sigmoid K) takes a local roughness that trades its smooth bend
-  // for a few kinks (docs/tfa_modal.md, "Local roughness").
-  double local_knots = 0.0;  // bent knots of the local roughness taken
-  if (options.local_roughness_dof > 0.0 && options.track_roughness < 0.0 && stage1 &&
-      previous_sized && uniform_roughness > grid[0]) {
-    const Eigen::MatrixXd d2 = track.second_differences();
-    const double nu = options.local_roughness_dof;
-    auto bent_knots = [&](const Eigen::VectorXd& sd, double scale) {
-      return static_cast<double>(
-          (sd.array().square() * (nu + 2 * modes) > 2.0 * nu * scale * scale).count());
-    };
-    auto em_sd = [&](const Eigen::VectorXd& at, double scale) {
-      Eigen::VectorXd sd(d2.rows());
-      for (Eigen::Index i = 0; i < d2.rows(); ++i) {
-        double squares = 0.0;
-        for (int b = 0; b < 2 * modes; ++b)
-          squares += std::pow(d2.row(i).dot(at.segment(b * m, m)), 2);
-        sd(i) = std::sqrt((nu * scale * scale + squares) / (nu + 2 * modes));
-      }
-      return sd;
-    };
-    for (std::size_t g = 0; g < grid.size() && grid[g] < uniform_roughness; ++g) {
-      Eigen::VectorXd candidate = theta;
-      Eigen::VectorXd sd = em_sd(candidate, grid[g]);
-      std::unique_ptr<VpProblem> problem;
-      StageOutcome o;
-      // sd stays the SDs of the last fit (problem) when the sweeps end.
-      for (int sweep = 1;; ++sweep) {
-        problem = std::make_unique<VpProblem>(p, modes, integrals, damping_values, design.functions,
-                                              design.terms, design.pairs, design.weight,
-                                              prior_rows(track, modes, sd), ties, real,
-                                              options.offsets, so_mode, design.phase_factor);
-        o = solve(*problem, candidate, options.max_iterations);
-        result.iterations += o.iterations;
-        if (!o.usable || sweep == 10) break;
-        const Eigen::VectorXd next = em_sd(candidate, grid[g]);
-        const double moved = (next.array() / sd.array()).log().abs().maxCoeff();
-        if (moved < std::log(1.05)) break;
-        sd = next;
-      }
-      const double knots = bent_knots(sd, grid[g]);
-      auto lower = [&](double rss, double dof, double price) {
-        return rss + price * (dof + knots) < previous_rss + price * (previous_dof + local_knots);
-      };
-      if (!take_fit(problem, candidate, o, true, o.usable && spurious(*problem, candidate), lower))
-        break;
-      local_knots = knots;
-      roughness_sd = sd;
-      result.track_roughness = grid[g];
-    }
-    if (result.track_roughness != uniform_roughness) {
-      result.roughness_sd = roughness_sd;
-      const Eigen::Index knots = d2.rows();
-      result.roughness_t_s =
-          p.t_s(0) + track.spacing_s() * Eigen::ArrayXd::LinSpaced(knots, 0.0, knots - 1.0);
-    }
-  }
-  std::unique_ptr<VpProblem> final_problem = std::move(stage1);
-
-  // Stage 2: slowly varying mode shapes, at the chosen tracks. With the weight from the data they
-  // are kept only when they pay for their effective parameters (lower_bic, as the shape refit
-  // below): the shapes stay put when the data do not ask them to move. GCV's weight alone can
-  // let them absorb noise (10 dB trials, docs/tfa_modal.md). A weight given is the user's choice.
-  if (outcome.usable && shapes) {
-    const Design d = shape_design(*final_problem, theta, roughness_sd);
-    std::unique_ptr<VpProblem> constant_shapes = std::move(final_problem);
-    const Eigen::VectorXd constant_theta = theta;
-    const StageOutcome constant_outcome = outcome;
-    // The constant-shape fit is the last candidate taken: its size is known when it was counted.
-    std::optional<std::pair<double, double>> constant_size;
-    if (previous_sized) constant_size = std::make_pair(previous_rss, previous_dof);
-    if (fit_design(d, roughness_sd, final_problem) &&
-        (options.shape_weight >= 0.0 ||
-         lower_bic(*final_problem, theta, *constant_shapes, constant_theta, constant_size))) {
-      result.shape_weight = d.weight;
-    } else {
-      final_problem = std::move(constant_shapes);
-      theta = constant_theta;
-      outcome = constant_outcome;
-    }
-  }
-
-  // Shape refit. Stage 1's continuation runs with constant shapes, so mode shapes that change
-  // within the trial (only k22 modulated, a rotating stiffness ellipse) can only be followed by
-  // rougher tracks, which then trade with the shapes (docs/tfa_modal.md, "Shape refit"). When
-  // it chose tracks rougher than the smoothest, the other explanation is fitted too: the shape
-  // stage from the smoothest fit, the roughness continuation (same rule) in it up to, not
-  // including, stage 1's choice, the shape weight re-chosen by GCV at its tracks. It replaces
-  // the result when its BIC (effective parameters, the shapes' by the trace of their penalized
-  // smoother) is lower and its frequency tracks do not cross.
-  if (options.shape_refit && outcome.usable && shapes && options.shape_weight < 0.0 &&
-      grid.size() > 1 && smoothest.size() > 0) {
-    // The refit is untied (its start, the smoothest fit, has no ratios): with a tie taken it is
-    // the untied explanation by changing shapes, which the BIC then weighs against the tied one.
-    const TrackTies kept_ties = ties;
-    ties = TrackTies{};
-    const VpProblem base(p, modes, integrals, damping_values, constant, terms, {}, 0.0,
-                         prior_rows(track, modes, grid[0]), TrackTies{}, real, options.offsets,
-                         so_mode);
-    design = shape_design(base, smoothest, constant_roughness(track, grid[0]));
-    std::unique_ptr<VpProblem> first_problem = std::move(final_problem);
-    const Eigen::VectorXd first_theta = theta;
-    const StageOutcome first_outcome = outcome;
-    stage1.reset();
-    previous_rss = std::numeric_limits<double>::infinity();
-    previous_dof = 0.0;
-    double refit_roughness = -1.0;
-    // Every candidate from two starts (the continuation's fit and the start tracks): the start
-    // tracks were not fitted in this design, so they are a start of their own from the first
-    // candidate on (stage 1 takes them from the third).
-    Eigen::VectorXd refit_start = smoothest, refit_skipped;  // spurious candidates skipped
-    for (std::size_t g = 0; g < grid.size() && grid[g] < uniform_roughness; ++g) {
-      if (!try_candidate(grid[g], ties, true, refit_start, rougher, true, &refit_skipped)) {
-        if (refit_skipped.size() == 0) break;
-        refit_start = refit_skipped;
-        continue;
-      }
-      refit_start = theta;
-      refit_roughness = grid[g];
-    }
-    bool take_refit = false;
-    // Tracks that cross or come close: on a coupled arm the two frequencies avoid each other.
-    // Two modes whose frequencies lie within a quarter of the shape knots' rate, 1 / (4 h),
-    // beat with a period of four shape knots or more, which the shape splines follow: one mode
-    // with a varying shape then explains both (a crossing is one mode's shape taking over the
-    // other's), and the data cannot tell the two explanations apart. Such a refit is not taken.
-    const double min_gap_rad_per_s = 2.0 * M_PI / (4.0 * options.shape_knot_spacing_s);
-    auto too_close = [&](const Eigen::VectorXd& at) {
-      const Eigen::ArrayXXd omega = frequency_tracks(at);
-      for (int j = 0; j < modes; ++j)
-        for (int l = j + 1; l < modes; ++l) {
-          const Eigen::ArrayXd gap = omega.col(j) - omega.col(l);
-          if (gap.maxCoeff() > 0.0 && gap.minCoeff() < 0.0) return true;
-          if (gap.abs().minCoeff() < min_gap_rad_per_s) return true;
-        }
-      return false;
-    };
-    if (stage1) {
-      Design again = design;
-      const Eigen::VectorXd refit_sd = constant_roughness(track, refit_roughness);
-      again.weight = gcv_weight(design, theta, refit_sd);
-      if (again.weight != design.weight && fit_design(again, refit_sd, stage1))
-        design.weight = again.weight;
-      // The first fit's size, its bent knots counted when it has a local roughness.
-      std::optional<std::pair<double, double>> first_size;
-      double first_rss = 0.0, first_dof = 0.0;
-      if (local_knots > 0.0 && fit_size(*first_problem, first_theta, true, first_rss, first_dof))
-        first_size = std::make_pair(first_rss, first_dof + local_knots);
-      take_refit =
-          lower_bic(*stage1, theta, *first_problem, first_theta, first_size) && !too_close(theta);
-    }
-    if (take_refit) {
-      final_problem = std::move(stage1);
-      result.track_roughness = refit_roughness;
-      result.roughness_sd.resize(0);
-      result.roughness_t_s.resize(0);
-      result.shape_weight = design.weight;
-      result.shape_refit = true;
-      result.decay_tie = result.frequency_tie = 0.0;
-    } else {
-      final_problem = std::move(first_problem);
-      theta = first_theta;
-      outcome = first_outcome;
-      ties = kept_ties;
-    }
-  }
-
-  // Final evaluation: linear solution, Jacobian for the posterior covariance.
-  const VpProblem& fp = *final_problem;
-  Eigen::VectorXd beta;
-  Eigen::VectorXd residual(fp.residuals());
-  RowMajor jacobian(fp.residuals(), fp.parameters());
-  if (!outcome.usable || !fp.evaluate(theta.data(), residual.data(), jacobian.data(), &beta)) {
-    result.status = Status::failure("modal fit: the fit failed: " + outcome.message);
-    return result;
-  }
-  result.converged = outcome.converged;
-  if (!outcome.converged) {
-    result.warning = "modal fit: no convergence in " + std::to_string(options.max_iterations) +
-                     " iterations (" + outcome.message + "); every valid flag is false";
-  }
-  const int rd = fp.data_rows();
-  const double rss = residual.head(rd).squaredNorm();
-  result.residual_rms_whitened = std::sqrt(rss / rd);
-  // The bent knots of a local roughness count as parameters, as in the continuation's rule.
-  result.effective_parameters = fit_effective_parameters(fp, theta, jacobian) +
-                                (result.roughness_sd.size() > 0 ? local_knots : 0.0);
-  result.bic = rd * std::log(rss) + std::log(static_cast<double>(rd)) * result.effective_parameters;
-  const Eigen::MatrixXd covariance = posterior_covariance(fp, residual, jacobian);
-
-  Eigen::MatrixXcd e;
-  fp.oscillations(theta.data(), e);
-  const Eigen::MatrixXd& values = track_values;
-  const Eigen::MatrixXd slopes = track.first_derivatives(p.tau_s);
-  const Eigen::MatrixXd curvatures = track.second_derivatives(p.tau_s);
-  // Time functions and their derivatives as used by the final terms.
-  Eigen::MatrixXd functions = constant, function_slopes = Eigen::MatrixXd::Zero(n, 1);
-  if (fp.terms().size() != static_cast<size_t>(modes * c) || fp.penalty_rows() > 0) {
-    const UniformCubicBspline shape(length_s, options.shape_knot_spacing_s);
-    functions.resize(n, 1 + shape.size());
-    functions << constant, shape.values(p.tau_s);
-    function_slopes.resize(n, 1 + shape.size());
-    function_slopes << Eigen::MatrixXd::Zero(n, 1), shape.first_derivatives(p.tau_s);
-  }
-  result.fitted = Eigen::MatrixXd::Zero(n, c);
-  for (int j = 0; j < modes; ++j) {
-    ModeTrack mt;
-    const Eigen::VectorXd ca = theta.segment(2 * j * m, m), cw = theta.segment((2 * j + 1) * m, m);
-    mt.alpha_per_s = values * ca;
-    if (j > 0 && ties[0].sd > 0.0) mt.decay_ratio = theta(fp.first_ratio(0) + j - 1);
-    if (j > 0 && ties[1].sd > 0.0) mt.frequency_ratio = theta(fp.first_ratio(1) + j - 1);
-    mt.omega_rad_per_s = values * cw;
-    mt.alpha_dot_per_s2 = slopes * ca;
-    mt.omega_dot_rad_per_s2 = slopes * cw;
-    mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
-    // d alpha_j(t) / d (decay, frequency coefficients) (T x 2M): the decay coefficients alone, or
-    // with damping tracks alpha = a - omega' / (2 omega) (a = -Gamma the spline) also the
-    // frequency's, -(B' / (2 omega) - omega' B / (2 omega^2)).
-    Eigen::MatrixXd alpha_gradient = Eigen::MatrixXd::Zero(n, 2 * m);
-    alpha_gradient.leftCols(m) = values;
-    if (fp.damping_tracks()) {
-      const Eigen::ArrayXd w = mt.omega_rad_per_s.array(), w_dot = mt.omega_dot_rad_per_s2.array();
-      const Eigen::ArrayXd w_ddot = (curvatures * cw).array();
-      mt.alpha_per_s.array() -= w_dot / (2.0 * w);
-      mt.alpha_dot_per_s2.array() -= w_ddot / (2.0 * w) - w_dot.square() / (2.0 * w.square());
-      alpha_gradient.rightCols(m) = -(slopes.array().colwise() / (2.0 * w) -
-                                      values.array().colwise() * (w_dot / (2.0 * w.square())))
-                                         .matrix();
-    }
-    // Mode j's decay and frequency coefficients are adjacent in theta: one 2M x 2M block.
-    const Eigen::MatrixXd cov_aw = covariance.block(2 * j * m, 2 * j * m, 2 * m, 2 * m);
-    const Eigen::MatrixXd cov_w = cov_aw.bottomRightCorner(m, m);
-    mt.alpha_sd_per_s =
-        ((alpha_gradient * cov_aw).cwiseProduct(alpha_gradient)).rowwise().sum().cwiseSqrt();
-    mt.frequency_sd_hz =
-        ((values * cov_w).cwiseProduct(values)).rowwise().sum().cwiseSqrt() / (2.0 * M_PI);
-    // Whitened shape w_j(t) and its slope, then channel units a_j = L w_j.
-    Eigen::MatrixXcd w = Eigen::MatrixXcd::Zero(n, c), w_dot = Eigen::MatrixXcd::Zero(n, c);
-    for (size_t t = 0; t < fp.terms().size(); ++t) {
-      const LinearTerm& term = fp.terms()[t];
-      if (term.mode != j) continue;
-      const Complex coef(beta(2 * t), beta(2 * t + 1));
-      for (int i = 0; i < n; ++i) {
-        w.row(i) += coef * functions(i, term.function) * term.direction.transpose();
-        w_dot.row(i) += coef * function_slopes(i, term.function) * term.direction.transpose();
-      }
-    }
-    const Eigen::MatrixXcd lower = p.cholesky.cast<Complex>();
-    mt.shape = w * lower.transpose();
-    const Eigen::MatrixXcd shape_dot = w_dot * lower.transpose();
-    if (!metric.empty()) {
-      // The modal coordinate q_j = |a_j|_M e^{Re Phi_j} (docs/tfa_modal.md, "Modal amplitude"):
-      // d/dt ln q_j adds Re(a^H M a' + a^H M' a / 2) / |a|_M^2 to alpha_j, and its phase rate
-      // Im(a^H M a') / |a|_M^2 (the M-weighted mean of the channels') goes to omega_j.
-      Eigen::VectorXd d_alpha(n), d_omega(n);
-      for (int i = 0; i < n; ++i) {
-        const Eigen::VectorXcd a = mt.shape.row(i).transpose();
-        const Eigen::VectorXcd a_dot = shape_dot.row(i).transpose();
-        const double norm2 = a.dot(metric[i] * a).real();  // a^H M a, |a|_M^2
-        const Complex rate = a.dot(metric[i] * a_dot) + 0.5 * a.dot(metric_dot[i] * a);
-        d_alpha(i) = norm2 > 0.0 ? rate.real() / norm2 : 0.0;
-        d_omega(i) = norm2 > 0.0 ? rate.imag() / norm2 : 0.0;
-      }
-      mt.alpha_per_s += d_alpha;
-      mt.omega_rad_per_s += d_omega;
-      Eigen::MatrixXd corrections(n, 2);
-      corrections << d_alpha, d_omega;
-      const Eigen::MatrixXd slopes_of_corrections = central_differences(corrections, dt_s);
-      mt.alpha_dot_per_s2 += slopes_of_corrections.col(0);
-      mt.omega_dot_rad_per_s2 += slopes_of_corrections.col(1);
-      mt.frequency_hz = mt.omega_rad_per_s / (2.0 * M_PI);
-    }
-    mt.envelope.resize(n, c);
-    mt.phase_rad.resize(n, c);
-    mt.log_envelope_rate_per_s.resize(n, c);
-    mt.anr_db.resize(n);
-    mt.valid.resize(n);
-    const Eigen::VectorXd log_growth = e.col(j).cwiseAbs().array().log().matrix();  // Re Phi_j
-    const Eigen::VectorXd phase_integral = integrals * cw;                          // Im Phi_j, rad
-    Eigen::VectorXd shape_phase(c);
-    for (int i = 0; i < n; ++i) {
-      for (int k = 0; k < c; ++k) {
-        const Complex a = mt.shape(i, k);
-        mt.envelope(i, k) = std::abs(a) * std::exp(log_growth(i));
-        double phase = std::arg(a);  // unwrapped along time: the shape phase varies slowly
-        if (i > 0) phase += 2.0 * M_PI * std::round((shape_phase(k) - phase) / (2.0 * M_PI));
-        shape_phase(k) = phase;
-        mt.phase_rad(i, k) = phase + phase_integral(i);
-        mt.log_envelope_rate_per_s(i, k) =
-            mt.alpha_per_s(i) +
-            (std::norm(a) > 0.0 ? (shape_dot(i, k) * std::conj(a)).real() / std::norm(a) : 0.0);
-        result.fitted(i, k) += (a * e(i, j)).real();
-      }
-      mt.anr_db(i) = 10.0 * std::log10(0.5 * w.row(i).squaredNorm() * std::norm(e(i, j)));
-      mt.valid(i) = result.status.ok && result.converged &&
-                    mt.anr_db(i) >= options.anr_threshold_db &&
-                    mt.frequency_sd_hz(i) <= options.max_frequency_sd_hz &&
-                    mt.omega_rad_per_s(i) > 0.0 && std::isfinite(mt.alpha_per_s(i));
-    }
-    result.modes.push_back(std::move(mt));
-  }
-  // Real terms: whitened amplitudes b_r back to channel units L b_r.
-  Eigen::MatrixXd er;
-  fp.real_exponentials(theta.data(), er);
-  for (int r = 0; r < real; ++r) {
-    RealTerm rt;
-    const int index = fp.first_rate() + r;
-    rt.rate_per_s = theta(index);
-    rt.rate_sd_per_s = std::sqrt(std::max(0.0, covariance(index, index)));
-    rt.amplitude = p.cholesky * beta.segment(fp.complex_linear() + r * c, c);
-    result.fitted += er.col(r) * rt.amplitude.transpose();
-    result.real_terms.push_back(std::move(rt));
-  }
-  result.offset_rad = Eigen::VectorXd::Zero(c);
-  if (fp.first_so() > fp.first_offset()) {  // whitened offsets back to channel units
-    result.offset_rad = p.cholesky * beta.segment(fp.first_offset(), c);
-    result.fitted.rowwise() += result.offset_rad.transpose();
-  }
-  result.second_order_mode = -1;
-  if (fp.second_order_mode() >= 0) {  // the distortion's part of the model, in channel units
-    const int j = fp.second_order_mode();
-    Eigen::MatrixXd whitened(n, c);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const Complex e2 = e(i, j) * e(i, j);
-      for (int k = 0; k < c; ++k) {
-        const int col = fp.first_so() + 3 * k;
-        whitened(i, k) =
-            std::norm(e(i, j)) * beta(col) + (Complex(beta(col + 1), beta(col + 2)) * e2).real();
-      }
-    }
-    result.fitted += whitened * p.cholesky.transpose();
-  }
-  const std::vector<int> order = finish_modes(p, options, result.modes);
-  for (std::size_t i = 0; i < order.size(); ++i)
-    if (order[i] == fp.second_order_mode()) result.second_order_mode = static_cast<int>(i);
-  if (options.lost_track_time_s >= 0.0)
-    continue_lost_tracks(result.t_s, options.lost_track_time_s, options.anr_threshold_db,
-                         result.modes);
-  return result;
+  if (options.design == ModalDesign::sliding)
+    return fit_sliding(from.p, options, pencils, from.real, result);
+  return WholeFit(from, options, std::move(result)).run();
 }
 
 }  // namespace
