@@ -230,6 +230,10 @@ void run(TfaCommandOptions cli) {
     baseline = std::make_unique<data::Trial>(data::read_trial_csv(cli.baseline_path, csv));
   }
   const estimators::TfaResult r = estimators::identify_tfa(trial, o, baseline.get());
+  // Shown before a failure too: a movement trial without --baseline is a likely cause.
+  if (!r.deviation.warning.empty()) {
+    std::cerr << "stiffid tfa: warning: " << trial.source << ": " << r.deviation.warning << '\n';
+  }
   if (!r.status.ok) throw NumericalFailure(trial.source + ": " + r.status.message);
 
   nlohmann::json out;

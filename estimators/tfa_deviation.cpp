@@ -70,6 +70,36 @@ double detect_onset_s(const data::Trial& trial, const std::vector<std::string>& 
   return trial.start_time_s + first * trial.step_s();
 }
 
+std::string posture_drift(const Eigen::MatrixXd& angles_rad, double dt_s, double response_s,
+                          const Eigen::VectorXd& peak_rad,
+                          const std::vector<std::string>& channels) {
+  const Eigen::Index p = angles_rad.rows();
+  if (p < 3) return "";
+  const Eigen::VectorXd t =
+      Eigen::VectorXd::LinSpaced(p, 0.0, static_cast<double>(p - 1) * dt_s).array() -
+      0.5 * static_cast<double>(p - 1) * dt_s;
+  const double tt = t.squaredNorm();
+  std::string joints;
+  for (Eigen::Index k = 0; k < angles_rad.cols(); ++k) {
+    const Eigen::VectorXd y = angles_rad.col(k).array() - angles_rad.col(k).mean();
+    const double slope = t.dot(y) / tt;  // rad/s
+    const double residual_sd =
+        std::sqrt((y - slope * t).squaredNorm() / static_cast<double>(p - 2));
+    const double drift = std::abs(slope) * response_s;
+    if (std::abs(slope) > 10.0 * residual_sd / std::sqrt(tt) && drift > 0.1 * peak_rad(k)) {
+      joints += std::string(joints.empty() ? "" : "; ") + "'" + channels[k] + "' " +
+                number_text(slope) + " rad/s: " + number_text(drift) + " rad over the " +
+                number_text(response_s) + " s after it, largest deviation " +
+                number_text(peak_rad(k)) + " rad";
+    }
+  }
+  if (joints.empty()) return "";
+  return "the joints move before the onset (" + joints + "): the posture, the mean over the " +
+         number_text(static_cast<double>(p) * dt_s) +
+         " s before the onset, is not a rest posture; for a movement trial give --baseline (the "
+         "unperturbed trajectory)";
+}
+
 DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions& options,
                                 const data::Trial* baseline) {
   if (options.angle_channels.empty()) throw InputError("--angles: no angle channel given");
@@ -116,6 +146,11 @@ DeviationResult joint_deviation(const data::Trial& trial, const DeviationOptions
     }
     const Eigen::RowVectorXd posture = angles.middleRows(onset - pre, pre).colwise().mean();
     r.posture_rad = posture.replicate(rows, 1);
+    const int after = trial.sample_count() - onset;
+    const Eigen::VectorXd peak =
+        (angles.bottomRows(after).rowwise() - posture).cwiseAbs().colwise().maxCoeff().transpose();
+    r.warning = posture_drift(angles.middleRows(onset - pre, pre), dt,
+                              static_cast<double>(after) * dt, peak, options.angle_channels);
   } else {
     if (std::abs(baseline->sample_rate_hz - trial.sample_rate_hz) > 1e-9 * trial.sample_rate_hz) {
       throw InputError("--baseline " + where(*baseline) + ": sample rate " +

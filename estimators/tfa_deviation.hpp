@@ -36,7 +36,19 @@ struct DeviationResult {
       deviation_rad;            ///< (S' x n) delta theta from start_time_s to the end of the trial
   Eigen::MatrixXd hilbert_rad;  ///< (S' x n) H[delta theta] when analytic, else empty
   Eigen::MatrixXd posture_rad;  ///< (S' x n) unperturbed angles theta_0(t)
+  /// Without a baseline: why the pre-onset mean is not a rest posture (the joints move before the
+  /// onset, as in a movement trial; posture_drift), else empty.
+  std::string warning;
 };
+
+/// Whether `angles_rad` (P x n, the joint angles over the span before the onset whose mean is the
+/// posture, rad, sampled every dt_s) move: per joint, the least-squares slope (rad/s) is more than
+/// 10 standard errors from zero and, carried over `response_s` (the free response analysed, s), it
+/// moves the joint by more than a tenth of `peak_rad` (the largest |deviation| of that joint
+/// after the onset, rad). Returns the message naming each such joint, or "".
+std::string posture_drift(const Eigen::MatrixXd& angles_rad, double dt_s, double response_s,
+                          const Eigen::VectorXd& peak_rad,
+                          const std::vector<std::string>& channels);
 
 /// Deviations from `baseline` (a trial with the same angle channels and rate covering the trial's
 /// times, e.g. the mean of unperturbed repetitions) or, without one, from the mean of the angles

@@ -169,3 +169,56 @@ BOOST_AUTO_TEST_CASE(missing_channels_short_trials_and_bad_onsets_are_input_erro
   o.deviation.force_channels = {};  // auto onset without forces
   BOOST_CHECK_THROW(est::identify_tfa(trial, o), stiffid::InputError);
 }
+
+// The movement check of the pre-onset posture (posture_drift): a joint that moves before the
+// onset is named, one that rests (with or without white noise) is not.
+BOOST_AUTO_TEST_CASE(a_joint_moving_before_the_onset_is_named_in_a_warning) {
+  const double dt = 2.5e-4;  // 4 kHz
+  const int p = 800;         // the default 0.2 s before the onset
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> normal(0.0, 1e-4);
+  Eigen::MatrixXd angles(p, 2);
+  for (int i = 0; i < p; ++i) {
+    angles(i, 0) = 0.7 + normal(rng);  // resting, noisy
+    angles(i, 1) = 1.2;                // resting, noise-free
+  }
+  const Eigen::Vector2d peak(3e-3, 3e-3);  // rad
+  const std::vector<std::string> names = {"th1", "th2"};
+  BOOST_CHECK_EQUAL(est::posture_drift(angles, dt, 2.5, peak, names), "");
+  // th2 moves at 0.5 rad/s (a reach): 1.25 rad over 2.5 s against a 3 mrad response.
+  Eigen::MatrixXd moving = angles;
+  for (int i = 0; i < p; ++i) moving(i, 1) += 0.5 * i * dt;
+  const std::string w = est::posture_drift(moving, dt, 2.5, peak, names);
+  BOOST_CHECK(w.find("'th2' 0.5 rad/s") != std::string::npos);
+  BOOST_CHECK(w.find("'th1'") == std::string::npos);
+  BOOST_CHECK(w.find("--baseline") != std::string::npos);
+  // A drift 10 standard errors clear of zero but small against the response: no warning.
+  // SE of the slope = sigma / sqrt(sum (t - mean t)^2) = 1e-4 / sqrt(p^3 dt^2 / 12) = 6.1e-5
+  // rad/s at p = 800.
+  Eigen::MatrixXd slow = angles;
+  for (int i = 0; i < p; ++i) slow(i, 0) += 0.01 * i * dt;  // 160 SE; 0.025 rad over 2.5 s
+  BOOST_CHECK(est::posture_drift(slow, dt, 2.5, Eigen::Vector2d(30.0, 3e-3), names).empty());
+  BOOST_CHECK(!est::posture_drift(slow, dt, 2.5, peak, names).empty());
+  // A drift large against the response (5e-4 rad over 2.5 s) but within the noise (about 3 SE):
+  // no warning.
+  Eigen::MatrixXd noisy = angles;
+  for (int i = 0; i < p; ++i) noisy(i, 0) += 2e-4 * i * dt;
+  BOOST_CHECK(est::posture_drift(noisy, dt, 2.5, peak, names).empty());
+}
+
+BOOST_AUTO_TEST_CASE(the_posture_trials_rest_before_the_onset_a_ramp_added_moves_them) {
+  for (const double snr : {HUGE_VAL, 20.0, 0.0}) {
+    const stiffid::data::Trial trial = posture_trial("sigmoid", snr, 3);
+    BOOST_CHECK_EQUAL(est::joint_deviation(trial, piovesan_options().deviation).warning, "");
+  }
+  // The same trial on a slow reach: the elbow turns at 0.2 rad/s throughout.
+  stiffid::data::Trial moving = posture_trial("sigmoid", 20.0, 3);
+  const int col = moving.index("th2");
+  for (int i = 0; i < moving.sample_count(); ++i)
+    moving.samples(i, col) += 0.2 * i * moving.step_s();
+  const std::string w = est::joint_deviation(moving, piovesan_options().deviation).warning;
+  const std::size_t at = w.find("'th2' ");
+  BOOST_REQUIRE(at != std::string::npos);
+  BOOST_CHECK_CLOSE(std::stod(w.substr(at + 6)), 0.2, 0.1);  // rad/s, within 0.1 %
+  BOOST_CHECK(w.find("'th1'") == std::string::npos);
+}
