@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <cstdlib>  // defines __GLIBC__ on glibc systems
+#include <string>
 
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -33,6 +34,21 @@ void keep_large_blocks_for_reuse() {
   std::free(block);
 #endif
 #endif
+}
+
+std::string tunables_with_huge_pages(const char* current) {
+  const std::string set = "glibc.malloc.hugetlb=";
+  const std::string value = current == nullptr ? "" : current;
+  // Entries are NAME=VALUE separated by ':'; one setting the tunable already wins.
+  for (std::size_t from = 0; from <= value.size(); from = value.find(':', from) + 1) {
+    if (value.compare(from, set.size(), set) == 0) return value;
+    if (value.find(':', from) == std::string::npos) break;
+  }
+  return value + (value.empty() ? "" : ":") + set + "1";
+}
+
+void ask_huge_pages_after_exec() {
+  setenv("GLIBC_TUNABLES", tunables_with_huge_pages(std::getenv("GLIBC_TUNABLES")).c_str(), 1);
 }
 
 }  // namespace stiffid::data

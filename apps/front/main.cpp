@@ -64,7 +64,8 @@ int main(int argc, char** argv) {
                                   [](CLI::App& app) { stiffid::apps::add_tfa_command(app); });
   }
   const std::string full = full_program(argv[0]);
-  execv(full.c_str(), argv);  // argv[0] kept: usage lines name `stiffid` as typed
+  stiffid::data::ask_huge_pages_after_exec();  // for the threads' heaps too (data/allocator.hpp)
+  execv(full.c_str(), argv);                   // argv[0] kept: usage lines name `stiffid` as typed
   std::cerr << "stiffid: error: cannot run " << full << " (" << std::strerror(errno)
             << "): it is built and installed next to stiffid\n";
   return 2;
