@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <complex>
+#include <cstring>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -220,6 +221,23 @@ class VpProblem {
   int tie_rows() const { return tied_modes() * basis(); }
   int residuals() const {
     return data_rows() + penalty_rows() + static_cast<int>(prior_.rows()) + tie_rows();
+  }
+
+  // An evaluation with its Jacobian: the point, the residuals (residuals()) and the Jacobian
+  // (residuals() x parameters()).
+  struct Evaluation {
+    Eigen::VectorXd theta, residual;
+    RowMajor jacobian;
+  };
+  // Keeps `e`, the last Jacobian a solve evaluated (solve()): where the solve ended, so that
+  // fit_size there need not evaluate again.
+  void remember(Evaluation&& e) const { last_ = std::move(e); }
+  // The remembered evaluation if it is at exactly `theta` (every bit), else null.
+  const Evaluation* evaluation_at(const Eigen::VectorXd& theta) const {
+    const bool same = last_.theta.size() == theta.size() && theta.size() > 0 &&
+                      std::memcmp(last_.theta.data(), theta.data(),
+                                  sizeof(double) * static_cast<std::size_t>(theta.size())) == 0;
+    return same ? &last_ : nullptr;
   }
 
   // exp(beta_r tau_i) for every real term: (N x R); false on overflow.
@@ -471,6 +489,7 @@ class VpProblem {
   mutable Eigen::MatrixXd er_, a_data_, a_penalty_, a_, d_, q_, qtd_;
   mutable Eigen::VectorXd b_;
   mutable Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr_;
+  mutable Evaluation last_;  // remember()
 };
 
 // The variable-projection problem as Ceres sees it: compressed to p + 1 residuals
@@ -483,7 +502,8 @@ class VpCost final : public ceres::CostFunction {
   explicit VpCost(const VpProblem& problem)
       : problem_(problem),
         residual_(problem.residuals()),
-        jacobian_(problem.residuals(), problem.parameters()) {
+        at_jacobian_{Eigen::VectorXd(), Eigen::VectorXd(problem.residuals()),
+                     RowMajor(problem.residuals(), problem.parameters())} {
     set_num_residuals(problem.parameters() + 1);
     mutable_parameter_block_sizes()->push_back(problem.parameters());
   }
@@ -492,15 +512,19 @@ class VpCost final : public ceres::CostFunction {
     const int np = problem_.parameters();
     Eigen::Map<Eigen::VectorXd> out(residuals, np + 1);
     const bool with_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
-    if (!problem_.evaluate(parameters[0], residual_.data(),
-                           with_jacobian ? jacobian_.data() : nullptr, nullptr))
+    VpProblem::Evaluation& at = at_jacobian_;
+    if (!problem_.evaluate(parameters[0], with_jacobian ? at.residual.data() : residual_.data(),
+                           with_jacobian ? at.jacobian.data() : nullptr, nullptr)) {
+      if (with_jacobian) at.theta.resize(0);
       return false;
+    }
     out.setZero();
     if (!with_jacobian) {
       out(np) = residual_.norm();
       return true;
     }
-    if (!compress_least_squares(jacobian_, residual_, compressed_)) return false;
+    at.theta = Eigen::Map<const Eigen::VectorXd>(parameters[0], np);
+    if (!compress_least_squares(at.jacobian, at.residual, compressed_)) return false;
     out.head(np) = compressed_.c;
     out(np) = compressed_.s;
     Eigen::Map<RowMajor> jac(jacobians[0], np + 1, np);
@@ -508,11 +532,14 @@ class VpCost final : public ceres::CostFunction {
     jac.row(np).setZero();
     return true;
   }
+  // The last evaluation with a Jacobian (Ceres asks for the cost alone at trial points, so this is
+  // at the last point it accepted), handed over; its theta is empty when there was none.
+  VpProblem::Evaluation take_last_jacobian() { return std::move(at_jacobian_); }
 
  private:
   const VpProblem& problem_;
-  mutable Eigen::VectorXd residual_;
-  mutable RowMajor jacobian_;
+  mutable Eigen::VectorXd residual_;  // of a cost-only evaluation
+  mutable VpProblem::Evaluation at_jacobian_;
   mutable CompressedLeastSquares compressed_;
 };
 
@@ -526,7 +553,8 @@ struct StageOutcome {
 
 StageOutcome solve(const VpProblem& problem, Eigen::VectorXd& theta, int max_iterations) {
   ceres::Problem ceres_problem;
-  ceres_problem.AddResidualBlock(new VpCost(problem), nullptr, theta.data());
+  auto* cost = new VpCost(problem);  // owned by ceres_problem
+  ceres_problem.AddResidualBlock(cost, nullptr, theta.data());
   ceres::Solver::Options options;
   options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
   options.max_num_iterations = max_iterations;
@@ -537,6 +565,7 @@ StageOutcome solve(const VpProblem& problem, Eigen::VectorXd& theta, int max_ite
   options.gradient_tolerance = 1e-12;
   ceres::Solver::Summary summary;
   ceres::Solve(options, &ceres_problem, &summary);
+  problem.remember(cost->take_last_jacobian());
   StageOutcome out;
   out.usable = summary.IsSolutionUsable();
   out.converged = summary.termination_type == ceres::CONVERGENCE;
@@ -724,10 +753,16 @@ double fit_effective_parameters(const VpProblem& problem, const Eigen::VectorXd&
 }
 
 // Size of a converged fit: the whitened residual sum of squares of the data rows and, when asked,
-// the effective number of parameters (fit_effective_parameters), from one evaluation. False when
-// the model cannot be evaluated at theta.
+// the effective number of parameters (fit_effective_parameters), from one evaluation (none where
+// the problem's last solve ended: its remembered Jacobian). False when the model cannot be
+// evaluated at theta.
 bool fit_size(const VpProblem& problem, const Eigen::VectorXd& theta, bool with_dof, double& rss,
               double& dof) {
+  if (const VpProblem::Evaluation* known = problem.evaluation_at(theta)) {  // where a solve ended
+    rss = known->residual.head(problem.data_rows()).squaredNorm();
+    dof = with_dof ? fit_effective_parameters(problem, theta, known->jacobian) : 0.0;
+    return true;
+  }
   Eigen::VectorXd residual(problem.residuals());
   RowMajor jacobian;
   if (with_dof) jacobian.resize(problem.residuals(), problem.parameters());
