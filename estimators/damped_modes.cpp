@@ -223,11 +223,12 @@ class VpProblem {
     return data_rows() + penalty_rows() + static_cast<int>(prior_.rows()) + tie_rows();
   }
 
-  // An evaluation with its Jacobian: the point, the residuals (residuals()) and the Jacobian
-  // (residuals() x parameters()).
+  // An evaluation with its Jacobian: the point, the residuals (residuals()), the Jacobian
+  // (residuals() x parameters()) and the linear solution (linear()).
   struct Evaluation {
     Eigen::VectorXd theta, residual;
     RowMajor jacobian;
+    Eigen::VectorXd beta;
   };
   // Keeps `e`, the last Jacobian a solve evaluated (solve()): where the solve ended, so that
   // fit_size there need not evaluate again.
@@ -503,7 +504,7 @@ class VpCost final : public ceres::CostFunction {
       : problem_(problem),
         residual_(problem.residuals()),
         at_jacobian_{Eigen::VectorXd(), Eigen::VectorXd(problem.residuals()),
-                     RowMajor(problem.residuals(), problem.parameters())} {
+                     RowMajor(problem.residuals(), problem.parameters()), Eigen::VectorXd()} {
     set_num_residuals(problem.parameters() + 1);
     mutable_parameter_block_sizes()->push_back(problem.parameters());
   }
@@ -514,7 +515,8 @@ class VpCost final : public ceres::CostFunction {
     const bool with_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
     VpProblem::Evaluation& at = at_jacobian_;
     if (!problem_.evaluate(parameters[0], with_jacobian ? at.residual.data() : residual_.data(),
-                           with_jacobian ? at.jacobian.data() : nullptr, nullptr)) {
+                           with_jacobian ? at.jacobian.data() : nullptr,
+                           with_jacobian ? &at.beta : nullptr)) {
       if (with_jacobian) at.theta.resize(0);
       return false;
     }
@@ -542,6 +544,20 @@ class VpCost final : public ceres::CostFunction {
   mutable VpProblem::Evaluation at_jacobian_;
   mutable CompressedLeastSquares compressed_;
 };
+
+// `problem` evaluated at `theta` with its Jacobian and linear solution: the remembered evaluation
+// where its last solve ended (no work), else one computed into `fresh`; null when the model
+// cannot be evaluated there.
+const VpProblem::Evaluation* evaluated(const VpProblem& problem, const Eigen::VectorXd& theta,
+                                       VpProblem::Evaluation& fresh) {
+  if (const VpProblem::Evaluation* known = problem.evaluation_at(theta)) return known;
+  fresh.theta = theta;
+  fresh.residual.resize(problem.residuals());
+  fresh.jacobian.resize(problem.residuals(), problem.parameters());
+  if (!problem.evaluate(theta.data(), fresh.residual.data(), fresh.jacobian.data(), &fresh.beta))
+    return nullptr;
+  return &fresh;
+}
 
 struct StageOutcome {
   bool usable = false;
@@ -758,20 +774,19 @@ double fit_effective_parameters(const VpProblem& problem, const Eigen::VectorXd&
 // evaluated at theta.
 bool fit_size(const VpProblem& problem, const Eigen::VectorXd& theta, bool with_dof, double& rss,
               double& dof) {
-  if (const VpProblem::Evaluation* known = problem.evaluation_at(theta)) {  // where a solve ended
-    rss = known->residual.head(problem.data_rows()).squaredNorm();
-    dof = with_dof ? fit_effective_parameters(problem, theta, known->jacobian) : 0.0;
+  const VpProblem::Evaluation* known = problem.evaluation_at(theta);
+  if (!with_dof && !known) {  // the residual alone
+    Eigen::VectorXd residual(problem.residuals());
+    if (!problem.evaluate(theta.data(), residual.data(), nullptr, nullptr)) return false;
+    rss = residual.head(problem.data_rows()).squaredNorm();
+    dof = 0.0;
     return true;
   }
-  Eigen::VectorXd residual(problem.residuals());
-  RowMajor jacobian;
-  if (with_dof) jacobian.resize(problem.residuals(), problem.parameters());
-  if (!problem.evaluate(theta.data(), residual.data(), with_dof ? jacobian.data() : nullptr,
-                        nullptr)) {
-    return false;
-  }
-  rss = residual.head(problem.data_rows()).squaredNorm();
-  dof = with_dof ? fit_effective_parameters(problem, theta, jacobian) : 0.0;
+  VpProblem::Evaluation fresh;
+  const VpProblem::Evaluation* e = known ? known : evaluated(problem, theta, fresh);
+  if (e == nullptr) return false;
+  rss = e->residual.head(problem.data_rows()).squaredNorm();
+  dof = with_dof ? fit_effective_parameters(problem, theta, e->jacobian) : 0.0;
   return true;
 }
 
@@ -1023,18 +1038,18 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
         }
       }
     }
-    Eigen::VectorXd beta, residual(problem.residuals());
-    RowMajor jacobian(problem.residuals(), problem.parameters());
-    const bool ok =
-        o.usable && problem.evaluate(candidate.data(), residual.data(), jacobian.data(), &beta);
+    VpProblem::Evaluation fresh;
+    const VpProblem::Evaluation* at = o.usable ? evaluated(problem, candidate, fresh) : nullptr;
+    const bool ok = at != nullptr;
     if (!ok) {
       ++failed;
       candidate = theta;  // carry the previous window's tracks over this one
     }
+    const Eigen::VectorXd& beta = (ok ? *at : fresh).beta;  // read only when ok
     const bool converged = ok && o.converged;
     result.converged = result.converged && converged;
     const Eigen::MatrixXd covariance =
-        ok ? posterior_covariance(problem, residual, jacobian)
+        ok ? posterior_covariance(problem, at->residual, at->jacobian)
            : Eigen::MatrixXd::Zero(problem.parameters(), problem.parameters());
     for (int j = 0; j < modes; ++j) {
       ModeTrack& mt = tracks[j];
@@ -1838,12 +1853,15 @@ void WholeFit::shape_refit() {
 void WholeFit::finish() {
   const VpProblem& fp = *final_;
   FinalFit f(fp);
-  Eigen::VectorXd residual(fp.residuals());
-  RowMajor jacobian(fp.residuals(), fp.parameters());
-  if (!outcome_.usable || !fp.evaluate(theta_.data(), residual.data(), jacobian.data(), &f.beta)) {
+  VpProblem::Evaluation fresh;
+  const VpProblem::Evaluation* at = outcome_.usable ? evaluated(fp, theta_, fresh) : nullptr;
+  if (at == nullptr) {
     result_.status = Status::failure("modal fit: the fit failed: " + outcome_.message);
     return;
   }
+  const Eigen::VectorXd& residual = at->residual;
+  const RowMajor& jacobian = at->jacobian;
+  f.beta = at->beta;
   result_.converged = outcome_.converged;
   if (!outcome_.converged) {
     result_.warning = "modal fit: no convergence in " + std::to_string(options_.max_iterations) +
