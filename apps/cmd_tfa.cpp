@@ -238,6 +238,9 @@ void run(TfaCommandOptions cli) {
 
   nlohmann::json out;
   out["method"] = estimators::to_string(o.method);
+  // Every warning of the run, as printed on stderr ([] when none): for scripts that read the JSON.
+  out["warnings"] = nlohmann::json::array();
+  if (!r.deviation.warning.empty()) out["warnings"].push_back(r.deviation.warning);
   out["options"] = {{"angles", o.deviation.angle_channels},
                     {"forces", o.deviation.force_channels},
                     {"onset", cli.onset},
@@ -325,7 +328,10 @@ void run(TfaCommandOptions cli) {
     out["offset_rad"] = series(r.modes.offset_rad);
     // Index j of the mode whose quadratic distortion was fitted (-1: none), as in f_hz[j].
     out["second_order_mode"] = r.modes.second_order_mode;
-    if (!r.modes.warning.empty()) std::cerr << "stiffid tfa: warning: " << r.modes.warning << '\n';
+    if (!r.modes.warning.empty()) {
+      std::cerr << "stiffid tfa: warning: " << r.modes.warning << '\n';
+      out["warnings"].push_back(r.modes.warning);
+    }
     const Eigen::MatrixXd& cov = r.modes.noise_covariance;
     nlohmann::json noise = nlohmann::json::array();
     for (Eigen::Index i = 0; i < cov.rows(); ++i) {

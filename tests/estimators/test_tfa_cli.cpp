@@ -450,3 +450,44 @@ BOOST_AUTO_TEST_CASE(bad_input_exits_2_without_writing) {
                     2);
   BOOST_CHECK(!fs::exists(out));
 }
+
+// The run's warnings are in the JSON (`warnings`, [] when none) as well as on stderr: the posture
+// trial has none; the same trial with the elbow turning at 0.2 rad/s throughout (a movement
+// trial, analysed without --baseline) is named with that rate.
+BOOST_AUTO_TEST_CASE(warnings_are_listed_in_the_json_as_on_stderr) {
+  const fs::path rest = scratch("rest.json");
+  BOOST_REQUIRE_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --method spectrogram -o " + rest.string()), 0);
+  BOOST_CHECK(read_json(rest)["warnings"] == nlohmann::json::array());
+
+  const fs::path moving = scratch("moving.csv");
+  {
+    std::ifstream in(kTrial);
+    std::ofstream out(moving);
+    std::string line;
+    std::getline(in, line);
+    BOOST_REQUIRE_EQUAL(line, "t,th1[rad],th2[rad],fx[N],fy[N]");
+    out << line << '\n' << std::setprecision(17);
+    double t = 0, th1 = 0, th2 = 0, fx = 0, fy = 0;
+    char comma = 0;
+    while (std::getline(in, line)) {
+      std::istringstream row(line);
+      row >> t >> comma >> th1 >> comma >> th2 >> comma >> fx >> comma >> fy;
+      out << t << ',' << th1 << ',' << th2 + 0.2 * t << ',' << fx << ',' << fy << '\n';
+    }
+  }
+  const fs::path json = scratch("moving.json");
+  std::string err;
+  BOOST_REQUIRE_EQUAL(
+      run(moving.string() + " --angles th1,th2 --onset 2.5 --method spectrogram -o " +
+              json.string(),
+          err),
+      0);
+  const nlohmann::json warnings = read_json(json)["warnings"];
+  BOOST_REQUIRE_EQUAL(warnings.size(), 1u);
+  const std::string w = warnings[0];
+  BOOST_CHECK(w.find("'th2' 0.2 rad/s") != std::string::npos);
+  BOOST_CHECK(w.find("'th1'") == std::string::npos);
+  BOOST_CHECK(w.find("--baseline") != std::string::npos);
+  BOOST_CHECK(err.find(w) != std::string::npos);
+}
