@@ -25,8 +25,8 @@ void keep_large_blocks_for_reuse();
 /// That tunable (glibc >= 2.35; older ones ignore it) makes malloc ask for transparent huge pages
 /// on every heap it maps, the heaps of threads other than the main one included, which
 /// keep_large_blocks_for_reuse cannot reach from inside a running program: on the modal `stiffid
-/// tfa` of a 5 s, 4 kHz trial, whose two fits run on two threads, 2850 instead of 1810 page faults
-/// and ~15 % less wall time; runs of a second and more are unchanged.
+/// tfa` of a 5 s, 4 kHz trial, whose two fits run on two threads, 1650-1810 page faults instead of
+/// 2850 and ~15 % less wall time; runs of a second and more are unchanged.
 std::string tunables_with_huge_pages(const char* current);
 
 /// Sets GLIBC_TUNABLES to tunables_with_huge_pages(its value): call just before the exec.

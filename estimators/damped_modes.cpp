@@ -231,7 +231,8 @@ class VpProblem {
     Eigen::VectorXd beta;
   };
   // Keeps `e`, the last Jacobian a solve evaluated (solve()): where the solve ended, so that
-  // fit_size there need not evaluate again.
+  // what reads the fit there (evaluated(): fit_size, the sliding windows, the final report) need
+  // not evaluate again.
   void remember(Evaluation&& e) const { last_ = std::move(e); }
   // The remembered evaluation if it is at exactly `theta` (every bit), else null.
   const Evaluation* evaluation_at(const Eigen::VectorXd& theta) const {

@@ -43,9 +43,9 @@ struct DeviationResult {
 
 /// Whether `angles_rad` (P x n, the joint angles over the span before the onset whose mean is the
 /// posture, rad, sampled every dt_s) move: per joint, the least-squares slope (rad/s) is more than
-/// 10 standard errors from zero and, carried over `response_s` (the free response analysed, s), it
-/// moves the joint by more than a tenth of `peak_rad` (the largest |deviation| of that joint
-/// after the onset, rad). Returns the message naming each such joint, or "".
+/// 10 standard errors from zero and, carried over `response_s` (the rest of the trial after the
+/// onset, s), it moves the joint by more than a tenth of `peak_rad` (the largest |deviation| of
+/// that joint after the onset, rad). Returns the message naming each such joint, or "".
 std::string posture_drift(const Eigen::MatrixXd& angles_rad, double dt_s, double response_s,
                           const Eigen::VectorXd& peak_rad,
                           const std::vector<std::string>& channels);
