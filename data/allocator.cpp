@@ -37,14 +37,10 @@ void keep_large_blocks_for_reuse() {
 }
 
 std::string tunables_with_huge_pages(const char* current) {
-  const std::string set = "glibc.malloc.hugetlb=";
   const std::string value = current == nullptr ? "" : current;
   // Entries are NAME=VALUE separated by ':'; one setting the tunable already wins.
-  for (std::size_t from = 0; from <= value.size(); from = value.find(':', from) + 1) {
-    if (value.compare(from, set.size(), set) == 0) return value;
-    if (value.find(':', from) == std::string::npos) break;
-  }
-  return value + (value.empty() ? "" : ":") + set + "1";
+  if ((":" + value).find(":glibc.malloc.hugetlb=") != std::string::npos) return value;
+  return value + (value.empty() ? "" : ":") + "glibc.malloc.hugetlb=1";
 }
 
 void ask_huge_pages_after_exec() {
