@@ -65,6 +65,7 @@ void check_options(const DampedModesOptions& o) {
   if (o.track_roughness == 0.0 || !std::isfinite(o.track_roughness))
     fail("track_roughness", "must be positive (rad/s), or negative for the choice from the data");
   if (!(o.init_window_s > 0.0)) fail("init_window_s", "must be positive (s)");
+  if (!(o.init_max_rate_hz >= 0.0)) fail("init_max_rate_hz", "must be >= 0 (Hz; 0: no limit)");
   if (!(o.sliding_window_s > 0.0)) fail("sliding_window_s", "must be positive (s)");
   if (!(o.max_frequency_sd_hz > 0.0)) fail("max_frequency_sd_hz", "must be positive (Hz)");
   if (!std::isfinite(o.max_mode_to_data_db)) fail("max_mode_to_data_db", "must be finite (dB)");
@@ -615,6 +616,7 @@ StartPencils start_pencils(const Prepared& p, const UniformCubicBspline& track,
   MatrixPencilOptions po;
   po.modes = o.modes;
   po.real_poles = real_poles;
+  po.max_rate_hz = o.init_max_rate_hz;
   data::parallel_for_index(out.first.size() + 1, [&](std::size_t k) {
     if (k == 0) {
       out.global = estimate_matrix_pencil(p.y, p.rate_hz, po);
@@ -970,6 +972,7 @@ DampedModesResult fit_sliding(const Prepared& p, const DampedModesOptions& optio
   MatrixPencilOptions po;
   po.modes = modes;
   po.real_poles = real;
+  po.max_rate_hz = options.init_max_rate_hz;
   auto pencil_start = [&](const MatrixPencilResult& pencil) {
     Eigen::VectorXd start = Eigen::VectorXd::Zero(4 * modes + real);
     for (int j = 0; j < modes; ++j) {

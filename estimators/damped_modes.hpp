@@ -145,6 +145,10 @@ struct DampedModesOptions {
                                       ///< (docs/tfa_modal.md). With a tie taken, the untied
                                       ///< shape refit is still offered (shape_refit)
   double init_window_s = 0.5;         ///< sliding matrix-pencil windows for the start, s
+  double init_max_rate_hz = 250.0;    ///< the start's matrix pencils work at this rate at most,
+                                      ///< Hz: a fit at a higher rate (--decimate-hz above it)
+                                      ///< hands them its samples low-passed and decimated
+                                      ///< further (MatrixPencilOptions::max_rate_hz); 0: none
   double anr_threshold_db = 0.0;      ///< validity: amplitude-to-noise ratio at least this, dB
   double max_frequency_sd_hz = 0.1;   ///< validity: posterior SD of f_j(t) at most this, Hz
   double max_mode_to_data_db = 20.0;  ///< validity: a mode's power at most this far above the

@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "estimators/decimate.hpp"
+
 namespace stiffid::estimators {
 namespace {
 
@@ -142,6 +144,19 @@ MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd
                                           double sample_rate_hz,
                                           const MatrixPencilOptions& options) {
   check_inputs(samples, sample_rate_hz, options);
+  if (options.max_rate_hz > 0.0 && sample_rate_hz > options.max_rate_hz) {
+    // The zero-phase FIR of the modal fit's own decimation (half-length 5 D input samples);
+    // output sample i is input sample i D, so the amplitudes stay those at the first sample.
+    DecimationOptions decimation;
+    decimation.factor = static_cast<int>(std::ceil(sample_rate_hz / options.max_rate_hz - 1e-9));
+    decimation.half_taps_per_factor = 5;
+    const DecimationResult slow = decimate(samples, sample_rate_hz, decimation);
+    if (slow.samples.rows() >= matrix_pencil_min_samples(options.modes, options.real_poles)) {
+      MatrixPencilOptions at_rate = options;
+      at_rate.max_rate_hz = 0.0;
+      return estimate_matrix_pencil(slow.samples, slow.sample_rate_hz, at_rate);
+    }
+  }
   const int s = static_cast<int>(samples.rows());
   const int c = static_cast<int>(samples.cols());
   const int n = options.modes;
@@ -153,6 +168,7 @@ MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd
 
   MatrixPencilResult result;
   result.pencil = pencil;
+  result.rate_hz = sample_rate_hz;
   // Right singular vectors of the stacked Hankel matrix H of all channels, (C (S - L)) x (L + 1)
   // with H(k (S - L) + i, a) = x_k(i + a), as the eigenvectors of its Gram matrix H^T H: an
   // (L + 1)-square symmetric eigenproblem, several times cheaper than an SVD of the tall H. The

@@ -23,9 +23,14 @@ struct MatrixPencilOptions {
   int modes = 2;       ///< n real damped oscillations (2n complex poles)
   int real_poles = 0;  ///< R real poles beside them (model order 2n + R)
   double pencil_fraction =
-      1.0 / 3.0;         ///< pencil parameter L as a fraction of the samples, (0, 0.5]
-  int max_pencil = 160;  ///< cap on L, samples: the cost is O(channels * samples * L +
-                         ///< channels * L^2 + L^3) (Gram matrix, eigenproblem)
+      1.0 / 3.0;             ///< pencil parameter L as a fraction of the samples, (0, 0.5]
+  int max_pencil = 160;      ///< cap on L, samples: the cost is O(channels * samples * L +
+                             ///< channels * L^2 + L^3) (Gram matrix, eigenproblem)
+  double max_rate_hz = 0.0;  ///< > 0: samples at a higher rate are first low-passed and
+                             ///< decimated (decimate.hpp, D = ceil(rate / max_rate_hz)) so that
+                             ///< L spans L / max_rate_hz s or more, not L samples of a fast
+                             ///< record (at 4 kHz, 160 samples are 40 ms: slow modes look like
+                             ///< a trend there and the subspace fills with noise); 0: never
 };
 
 struct MatrixPencilResult {
@@ -41,7 +46,10 @@ struct MatrixPencilResult {
                                     ///< check; from its Gram matrix, so those below ~1e-8 of
                                     ///< the largest are not accurate)
   double residual_rms = 0.0;        ///< RMS of data minus model over all samples, channel units
-  int pencil = 0;                   ///< pencil parameter L used, samples
+                                    ///< (the decimated samples when max_rate_hz decimated them)
+  int pencil = 0;                   ///< pencil parameter L used, samples (at rate_hz)
+  double rate_hz = 0.0;             ///< rate the pencil worked at, Hz (the input rate, or the
+                                    ///< decimated one under max_rate_hz)
 };
 
 /// Fewest samples a pencil of n oscillations and R real poles needs: 2 (2n + R) + 2.
