@@ -264,7 +264,7 @@ void run(TfaCommandOptions cli) {
                            {"knots_s", mo.knot_spacing_s},
                            {"shape_knots_s", mo.shape_knot_spacing_s},
                            {"skip_s", mo.skip_s},
-                           {"noise_window_s", mo.noise_window_s},
+                           {"noise_window_s", r.noise_window_s},
                            {"init_window_s", mo.init_window_s},
                            {"anr_threshold_db", mo.anr_threshold_db},
                            {"max_frequency_sd_hz", mo.max_frequency_sd_hz},
@@ -328,9 +328,10 @@ void run(TfaCommandOptions cli) {
     out["offset_rad"] = series(r.modes.offset_rad);
     // Index j of the mode whose quadratic distortion was fitted (-1: none), as in f_hz[j].
     out["second_order_mode"] = r.modes.second_order_mode;
-    if (!r.modes.warning.empty()) {
-      std::cerr << "stiffid tfa: warning: " << r.modes.warning << '\n';
-      out["warnings"].push_back(r.modes.warning);
+    for (const std::string& warning : {r.noise_warning, r.modes.warning}) {
+      if (warning.empty()) continue;
+      std::cerr << "stiffid tfa: warning: " << warning << '\n';
+      out["warnings"].push_back(warning);
     }
     const Eigen::MatrixXd& cov = r.modes.noise_covariance;
     nlohmann::json noise = nlohmann::json::array();

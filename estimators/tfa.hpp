@@ -49,6 +49,10 @@ struct TfaResult {
   ReassignedSpectrogram spectrogram;  ///< stage 2 (spectrogram method; empty for modal)
   RidgeResult ridges;                 ///< stage 3 (modal method: the fitted tracks as ridges)
   DampedModesResult modes;            ///< modal method: the fit, with anr_db and valid per mode
+  double noise_window_s = 0.0;        ///< modal method: the pre-onset span the noise covariance
+                                      ///< came from, s (options.modes.noise_window_s, or less
+                                      ///< when the trial holds less before the onset)
+  std::string noise_warning;          ///< modal method: why noise_window_s is shorter than asked
   ModalParametersResult parameters;   ///< modal method: K, C and their validity per time
   ModalAnalysisResult modal;          ///< stages 4-5: K_theta(t), C_theta(t), P(t) (both methods)
   NormalizedForceResult force;        ///< stage 6

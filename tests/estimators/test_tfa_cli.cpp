@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <utility>
 
 #include "tests/support/support.hpp"
 
@@ -490,4 +491,42 @@ BOOST_AUTO_TEST_CASE(warnings_are_listed_in_the_json_as_on_stderr) {
   BOOST_CHECK(w.find("'th1'") == std::string::npos);
   BOOST_CHECK(w.find("--baseline") != std::string::npos);
   BOOST_CHECK(err.find(w) != std::string::npos);
+}
+
+// A trial with less than --noise-window-s before the onset: the modal fit takes the noise from
+// what there is, says so on stderr and in `warnings`, and `options.noise_window_s` is the span
+// used. The fixture starts at 2.0 s (0.5 s before the onset, less 0.05 s for the filter: 0.45 s);
+// cut at 2.25 s it holds 0.2 s; a window it holds (--noise-window-s 0.4) gives no warning.
+BOOST_AUTO_TEST_CASE(a_short_noise_window_is_reported_as_used) {
+  const fs::path cut = scratch("cut.csv");
+  {
+    std::ifstream in(kTrial);
+    std::ofstream out(cut);
+    std::string line;
+    std::getline(in, line);
+    out << line << '\n';
+    while (std::getline(in, line))
+      if (std::stod(line.substr(0, line.find(','))) >= 2.25 - 1e-9) out << line << '\n';
+  }
+  for (const auto& [trial, used] : {std::pair{kTrial, 0.45}, std::pair{cut.string(), 0.2}}) {
+    const fs::path json = scratch("short.json");
+    std::string err;
+    BOOST_REQUIRE_EQUAL(run(trial + " --angles th1,th2 --onset 2.5 -o " + json.string(), err), 0);
+    const nlohmann::json out = read_json(json);
+    BOOST_CHECK_CLOSE(out["options"]["noise_window_s"].get<double>(), used, 1e-6);
+    const nlohmann::json warnings = out["warnings"];
+    BOOST_REQUIRE_EQUAL(warnings.size(), 1u);
+    const std::string w = warnings[0];
+    std::ostringstream span;
+    span << used << " s before the onset";
+    BOOST_CHECK_MESSAGE(w.find(span.str()) != std::string::npos, w);
+    BOOST_CHECK(w.find("--noise-window-s 1 s asked") != std::string::npos);
+    BOOST_CHECK(err.find(w) != std::string::npos);
+  }
+  const fs::path held = scratch("held.json");
+  BOOST_REQUIRE_EQUAL(
+      run(kTrial + " --angles th1,th2 --onset 2.5 --noise-window-s 0.4 -o " + held.string()), 0);
+  const nlohmann::json out = read_json(held);
+  BOOST_CHECK_EQUAL(out["options"]["noise_window_s"].get<double>(), 0.4);
+  BOOST_CHECK(out["warnings"] == nlohmann::json::array());
 }
