@@ -91,24 +91,24 @@ void identify_modal(TfaResult& r, const TfaOptions& options) {
   }
   // The noise window reaches back as far as the record allows (less a margin for the filter).
   const double available_s = dev.onset_s - dev.start_time_s - 0.05;
-  if (available_s >= 0.1 && available_s < mo.noise_window_s) {
-    // A variance from N independent samples has a relative SD of sqrt(2 / N); the decimated
-    // noise is about white up to the fit's Nyquist frequency, so N ~ window x rate.
-    const double rate_hz =
-        mo.decimate_hz > 0.0 ? std::min(dev.sample_rate_hz, mo.decimate_hz) : dev.sample_rate_hz;
-    r.noise_warning = "the noise covariance comes from the " + number_text(available_s) +
-                      " s before the onset that the trial holds (less 0.05 s kept for the "
-                      "filter), not the --noise-window-s " +
-                      number_text(mo.noise_window_s) + " s asked (about +-" +
-                      number_text(std::round(100.0 * std::sqrt(2.0 / (available_s * rate_hz)))) +
-                      " % in its variances, and so in the squared posterior SDs)";
-    mo.noise_window_s = available_s;
-  }
+  const double asked_s = mo.noise_window_s;
+  if (available_s >= 0.1) mo.noise_window_s = std::min(mo.noise_window_s, available_s);
   r.noise_window_s = mo.noise_window_s;
   r.modes =
       fit_damped_modes(dev.deviation_rad, dev.sample_rate_hz, dev.start_time_s, dev.onset_s, mo);
   const DampedModesResult& fit = r.modes;
   r.analysis_rate_hz = fit.rate_hz;
+  if (r.noise_window_s < asked_s && fit.rate_hz > 0.0) {
+    // A variance from N independent samples has a relative SD of sqrt(2 / N); the decimated
+    // noise is about white up to the fit's Nyquist frequency, so N ~ window x fit rate.
+    r.noise_warning =
+        "the noise covariance comes from the " + number_text(r.noise_window_s) +
+        " s before the onset that the trial holds (less 0.05 s kept for the "
+        "filter), not the --noise-window-s " +
+        number_text(asked_s) + " s asked (about +-" +
+        number_text(std::round(100.0 * std::sqrt(2.0 / (r.noise_window_s * fit.rate_hz)))) +
+        " % in its variances, and so in the squared posterior SDs)";
+  }
   r.decimation = std::max(1, static_cast<int>(std::lround(dev.sample_rate_hz / fit.rate_hz)));
   if (!fit.status.ok || fit.t_s.size() == 0) {
     r.status = fit.status.ok ? Status::failure("modal fit: no sample fitted") : fit.status;
