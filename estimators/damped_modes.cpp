@@ -93,13 +93,11 @@ Prepared prepare(const Eigen::Ref<const Eigen::MatrixXd>& x, double rate_hz, dou
   if (!(rate_hz > 0.0)) throw InputError("modal fit: sample rate must be positive");
   if (c < 1) throw InputError("modal fit: no channels");
   if (!x.allFinite()) throw InputError("modal fit: deviations contain NaN or infinity");
-  // Zero-phase Kaiser FIR of the tfa pipeline (decimate.hpp); a half-length of 5 D input samples
-  // (25 ms at 4 kHz -> 200 Hz) passes the modes (< 20 Hz) with unit gain within 1e-4 and keeps
-  // the filter off the pulse for all but the first 25 ms after skip_s.
-  DecimationOptions decimation;
-  decimation.factor =
-      o.decimate_hz > 0.0 ? std::max(1, static_cast<int>(std::lround(rate_hz / o.decimate_hz))) : 1;
-  decimation.half_taps_per_factor = 5;
+  // Zero-phase Kaiser FIR with the short filter of decimate.hpp (25 ms at 4 kHz -> 200 Hz): the
+  // first 25 ms after skip_s are the only samples whose filter reaches the pulse.
+  const DecimationOptions decimation = short_filter_decimation(
+      o.decimate_hz > 0.0 ? std::max(1, static_cast<int>(std::lround(rate_hz / o.decimate_hz)))
+                          : 1);
   const int d = decimation.factor;
   const int h = d > 1 ? decimation.half_taps_per_factor * d : 0;
   const int onset = static_cast<int>(std::ceil((onset_s - start_s) * rate_hz - 1e-9));

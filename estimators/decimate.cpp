@@ -8,6 +8,13 @@
 
 namespace stiffid::estimators {
 
+DecimationOptions short_filter_decimation(int factor) {
+  DecimationOptions options;
+  options.factor = factor;
+  options.half_taps_per_factor = 5;
+  return options;
+}
+
 DecimationResult decimate(const Eigen::Ref<const Eigen::MatrixXd>& x, double sample_rate_hz,
                           const DecimationOptions& options) {
   if (options.factor < 1 || !(sample_rate_hz > 0.0) || options.half_taps_per_factor < 1) {

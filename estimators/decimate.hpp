@@ -20,6 +20,12 @@ struct DecimationResult {
                                 ///< ends (renormalised there; not exact)
 };
 
+/// The modal fit's decimation (estimators/damped_modes.cpp, and the start's matrix pencils):
+/// options with factor D and a short filter, half-length 5 D input samples (25 ms at 4 kHz ->
+/// 200 Hz), which passes the modes (< 20 Hz) with unit gain within 1e-4 and keeps the filter off
+/// the pulse for all but the first 25 ms of the free response.
+DecimationOptions short_filter_decimation(int factor);
+
 /// Low-pass filters each column with a symmetric (zero-phase) FIR of unit DC gain and keeps every
 /// D-th sample. In the pass band (up to about half the cut-off) the gain is 1 within 1e-4. D = 1
 /// returns the input. Throws InputError on D < 1 or a rate that is not positive.

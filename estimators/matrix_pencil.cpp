@@ -145,12 +145,12 @@ MatrixPencilResult estimate_matrix_pencil(const Eigen::Ref<const Eigen::MatrixXd
                                           const MatrixPencilOptions& options) {
   check_inputs(samples, sample_rate_hz, options);
   if (options.max_rate_hz > 0.0 && sample_rate_hz > options.max_rate_hz) {
-    // The zero-phase FIR of the modal fit's own decimation (half-length 5 D input samples);
-    // output sample i is input sample i D, so the amplitudes stay those at the first sample.
-    DecimationOptions decimation;
-    decimation.factor = static_cast<int>(std::ceil(sample_rate_hz / options.max_rate_hz - 1e-9));
-    decimation.half_taps_per_factor = 5;
-    const DecimationResult slow = decimate(samples, sample_rate_hz, decimation);
+    // The zero-phase FIR of the modal fit's own decimation; output sample i is input sample
+    // i D, so the amplitudes stay those at the first sample.
+    const DecimationResult slow =
+        decimate(samples, sample_rate_hz,
+                 short_filter_decimation(
+                     static_cast<int>(std::ceil(sample_rate_hz / options.max_rate_hz - 1e-9))));
     if (slow.samples.rows() >= matrix_pencil_min_samples(options.modes, options.real_poles)) {
       MatrixPencilOptions at_rate = options;
       at_rate.max_rate_hz = 0.0;
