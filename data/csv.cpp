@@ -76,7 +76,20 @@ std::pair<std::string, std::string> name_and_unit(const std::string& header) {
   return {header, ""};
 }
 
+// Length of a UTF-8 byte-order mark at the start of `text` (spreadsheets write one): 3 or 0.
+std::size_t bom_length(std::string_view text) {
+  return text.substr(0, 3) == "\xEF\xBB\xBF" ? 3 : 0;
+}
+
 void check_header(const std::vector<std::string>& cells, const std::string& source, int line) {
+  if (cells.size() == 1) {
+    for (const char separator : {';', '\t'}) {
+      if (cells[0].find(separator) == std::string::npos) continue;
+      throw InputError(source + ":" + std::to_string(line) + ": the header is one column, '" +
+                       cells[0] + "': cells must be separated by ',' (this file uses " +
+                       (separator == ';' ? "';'" : "tabs") + ")");
+    }
+  }
   std::set<std::string> seen;
   for (size_t c = 0; c < cells.size(); ++c) {
     const std::string name = name_and_unit(cells[c]).first;
@@ -149,7 +162,7 @@ double CsvTable::number(int row, int col) const {
 CsvTable parse_csv(const std::string& text, const std::string& source) {
   CsvTable table;
   table.source = source;
-  std::istringstream in(text);
+  std::istringstream in(text.substr(bom_length(text)));
   std::string line;
   int line_number = 0;
   bool have_header = false;
@@ -310,7 +323,7 @@ constexpr std::size_t kChunksPerThread = 4;
 NumericCsv parse_numeric(std::string_view text, const std::string& source,
                          const std::string& time_column) {
   NumericCsv out;
-  std::size_t pos = 0;
+  std::size_t pos = bom_length(text);
   int line = 0;
   while (pos < text.size() && out.header.empty()) {
     std::size_t eol = text.find('\n', pos);
@@ -396,6 +409,37 @@ std::string at(const std::string& source, int line, int col) {
   return source + ":" + std::to_string(line) + ":" + std::to_string(col + 1);
 }
 
+// The message for a time column off its uniform grid (row `off` is the first row further than
+// `tolerance` steps from the line through the first and last times): where one interval differs
+// from the typical (median) one by more than the tolerance, that interval (missing or repeated
+// rows), else row `off` (a clock that drifts).
+std::string non_uniform(const Eigen::VectorXd& time, const std::vector<int>& lines,
+                        const std::string& source, int time_col, double tolerance, int off) {
+  const Eigen::Index rows = time.size();
+  std::vector<double> intervals(static_cast<std::size_t>(rows - 1));
+  for (Eigen::Index r = 1; r < rows; ++r) intervals[r - 1] = time(r) - time(r - 1);
+  std::vector<double> sorted = intervals;
+  const auto middle = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
+  std::nth_element(sorted.begin(), middle, sorted.end());
+  const double typical = *middle;
+  std::ostringstream msg;
+  msg << "non-uniform sampling: ";
+  for (Eigen::Index r = 1; r < rows; ++r) {
+    if (std::abs(intervals[r - 1] - typical) > tolerance * typical) {
+      msg << "t goes from " << shortest(time(r - 1)) << " to " << shortest(time(r)) << " s, "
+          << intervals[r - 1] / typical << " times the typical step of " << typical
+          << " s (missing or repeated rows?; tolerance " << tolerance << " step)";
+      return at(source, lines[r], time_col) + ": " + msg.str();
+    }
+  }
+  const double step = (time(rows - 1) - time(0)) / double(rows - 1);
+  msg << "t = " << shortest(time(off)) << " s is "
+      << std::abs(time(off) - (time(0) + off * step)) / step
+      << " steps off the uniform grid of step " << step << " s (tolerance " << tolerance
+      << " step)";
+  return at(source, lines[off], time_col) + ": " + msg.str();
+}
+
 Trial build_trial(NumericCsv&& csv, const std::string& source, const TrialCsvOptions& options) {
   const int columns = static_cast<int>(csv.header.size());
   const int rows = csv.rows();
@@ -433,11 +477,7 @@ Trial build_trial(NumericCsv&& csv, const std::string& source, const TrialCsvOpt
   for (int r = 0; r < rows; ++r) {
     const double deviation = std::abs(time(r) - (time(0) + r * step));
     if (deviation > options.time_tolerance * step) {
-      std::ostringstream msg;
-      msg << at(source, lines[r], time_col) << ": non-uniform sampling: t = " << shortest(time(r))
-          << " s is " << deviation / step << " steps off the uniform grid of step " << step
-          << " s (tolerance " << options.time_tolerance << " step)";
-      throw InputError(msg.str());
+      throw InputError(non_uniform(time, lines, source, time_col, options.time_tolerance, r));
     }
   }
   trial.sample_rate_hz = 1.0 / step;

@@ -30,7 +30,9 @@ struct CsvTable {
 };
 
 /// Parses CSV text: a header row, then rows with as many cells as the header (ragged rows, empty or
-/// duplicate column names are InputErrors). Blank lines and lines starting with '#' are skipped.
+/// duplicate column names are InputErrors). Blank lines and lines starting with '#' are skipped,
+/// and so is a UTF-8 byte-order mark before the header. Cells are separated by ','; a header of
+/// one column holding ';' or a tab is an InputError that says so.
 CsvTable parse_csv(const std::string& text, const std::string& source);
 /// Reads and parses a CSV file; a missing or unreadable file is an InputError naming the path.
 CsvTable read_csv(const std::string& path);
@@ -45,7 +47,9 @@ struct TrialCsvOptions {
 
 /// Parses a trial from CSV text: a header row, then every column except time becomes a channel. A
 /// header cell `name[unit]` (or `name (unit)`) sets the channel's unit. Every cell must be a finite
-/// number; time must increase uniformly within the tolerance. Errors name source:line:column.
+/// number; time must increase uniformly within the tolerance (an interval that is not the typical
+/// step is named: missing or repeated rows). The header rules are parse_csv's. Errors name
+/// source:line:column.
 /// Cells are converted in place (no per-cell strings), straight into the trial's columns, on up to
 /// max_threads() threads (data/parallel.hpp) for texts over 1 MiB; results do not depend on the
 /// thread count.

@@ -4,7 +4,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 
 #include "data/csv.hpp"
@@ -76,6 +78,38 @@ BOOST_AUTO_TEST_CASE(time_must_increase_uniformly) {
   // Jitter of 1e-4 step is within the default tolerance of 1e-3 step.
   const auto trial = d::parse_trial_csv("t,x\n0,1\n0.10001,2\n0.2,3\n", "ok.csv");
   BOOST_CHECK_CLOSE(trial.sample_rate_hz, 10.0, 1e-9);
+}
+
+// Rows missing from a long record: the error names the interval where they are missing (line 53,
+// t 0.5 -> 0.56 s, 6 steps), not the first row that the stretched mean step puts off its grid.
+// A clock that runs 4e-4 fast, then as slow: every interval is within the tolerance of the others,
+// but the middle rows are 0.02 steps off the grid; the first row off it (line 5) is named.
+BOOST_AUTO_TEST_CASE(missing_rows_are_named_where_they_are_missing) {
+  std::string gap = "t,x\n";
+  for (int i = 0; i < 100; ++i)
+    if (i <= 50 || i >= 56) gap += std::to_string(i / 100.0) + ",1\n";
+  expect_error(gap, {"trial.csv:53:1", "from 0.5 to 0.56 s", "6 times the typical step of 0.01 s",
+                     "missing or repeated rows"});
+  std::string drift = "t,x\n";
+  double t = 0.0;
+  for (int i = 0; i < 100; ++i, t += 0.01 * (i <= 50 ? 1.0004 : 0.9996)) {
+    std::ostringstream row;
+    row << std::setprecision(17) << t << ",1\n";
+    drift += row.str();
+  }
+  expect_error(drift, {"trial.csv:5:1", "steps off the uniform grid"});
+}
+
+// A byte-order mark (spreadsheets write one before the header) is not part of the first name;
+// a file separated by ';' or tabs is named as such.
+BOOST_AUTO_TEST_CASE(byte_order_mark_is_skipped_and_other_separators_are_named) {
+  const auto trial = d::parse_trial_csv("\xEF\xBB\xBFt,x\n0,1\n0.5,2\n", "bom.csv");
+  BOOST_CHECK_CLOSE(trial.sample_rate_hz, 2.0, 1e-12);
+  BOOST_CHECK_EQUAL(trial.names.at(0), "x");
+  const d::CsvTable table = d::parse_csv("\xEF\xBB\xBFid,err\n1,2\n", "bom.csv");
+  BOOST_CHECK_EQUAL(table.header.at(0), "id");
+  expect_error("t;x\n0;1\n0.5;2\n", {"trial.csv:1", "'t;x'", "separated by ','", "';'"});
+  expect_error("t\tx\n0\t1\n0.5\t2\n", {"trial.csv:1", "separated by ','", "tabs"});
 }
 
 BOOST_AUTO_TEST_CASE(missing_channel_and_file_are_named) {
