@@ -15,6 +15,10 @@ namespace stiffid::data {
 void write_file_atomically(const std::string& path, const std::string& content) {
   namespace fs = std::filesystem;
   const fs::path target(path);
+  std::error_code ec;
+  if (fs::is_directory(target, ec) || !target.has_filename()) {
+    throw InputError(path + ": is a folder; give a file name to write");
+  }
   const fs::path temporary =
       target.parent_path() / ("." + target.filename().string() + ".tmp" + std::to_string(getpid()));
   std::FILE* file = std::fopen(temporary.c_str(), "wb");
@@ -22,15 +26,15 @@ void write_file_atomically(const std::string& path, const std::string& content) 
   const bool written = std::fwrite(content.data(), 1, content.size(), file) == content.size();
   const bool flushed = std::fflush(file) == 0 && fsync(fileno(file)) == 0;
   const bool closed = std::fclose(file) == 0;
-  std::error_code ec;
   if (!(written && flushed && closed)) {
     fs::remove(temporary, ec);
     throw InputError(path + ": write failed (disk full?)");
   }
-  fs::rename(temporary, target, ec);
-  if (ec) {
+  std::error_code renamed;
+  fs::rename(temporary, target, renamed);
+  if (renamed) {
     fs::remove(temporary, ec);
-    throw InputError(path + ": cannot rename the finished file into place: " + ec.message());
+    throw InputError(path + ": cannot rename the finished file into place: " + renamed.message());
   }
 }
 

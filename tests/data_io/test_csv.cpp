@@ -162,6 +162,19 @@ BOOST_AUTO_TEST_CASE(atomic_write_leaves_no_temporary_and_fails_cleanly) {
   BOOST_CHECK_EQUAL(files, 1);
   BOOST_CHECK_THROW(d::write_file_atomically("/nonexistent/dir/out.json", "{}"),
                     stiffid::InputError);
+  // A folder given for the file: named as such, nothing written beside it or in its parent.
+  for (const std::string& target : {dir.string(), dir.string() + "/"}) {
+    BOOST_CHECK_EXCEPTION(d::write_file_atomically(target, "{}"), stiffid::InputError,
+                          [&](const stiffid::InputError& e) {
+                            return std::string(e.what()) ==
+                                   target + ": is a folder; give a file name to write";
+                          });
+  }
+  files = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir)) ++files;
+  BOOST_CHECK_EQUAL(files, 1);
+  for (const auto& entry : std::filesystem::directory_iterator(dir.parent_path()))
+    BOOST_CHECK(entry.path().filename().string().rfind("." + dir.filename().string(), 0) != 0);
 }
 
 namespace {
