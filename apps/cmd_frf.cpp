@@ -136,8 +136,7 @@ void run(const FrfCommandOptions& cli) {
                      std::to_string(cli.nfft));
   }
   if (!std::isfinite(cli.overlap) || cli.overlap < 0.0 || cli.overlap >= 1.0) {
-    throw InputError("--overlap: expected a fraction in [0, 1), got " +
-                     std::to_string(cli.overlap));
+    throw InputError("--overlap: expected a fraction in [0, 1), got " + number_text(cli.overlap));
   }
   const data::TrialCsvOptions csv = trial_csv_options(cli.sample_rate_hz);
   if (cli.stiffness && inputs.size() != outputs.size()) {

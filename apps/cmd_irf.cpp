@@ -57,9 +57,9 @@ int seconds_to_samples(double seconds, double sample_rate_hz, const std::string&
   const double samples = seconds * sample_rate_hz;
   const double rounded = std::round(samples);
   if (std::abs(samples - rounded) > kLagSampleTolerance || std::abs(rounded) > 1e9) {
-    throw InputError("--lags: '" + spec + "': " + std::to_string(seconds) +
-                     " s is not a whole number of samples at " + std::to_string(sample_rate_hz) +
-                     " Hz (" + std::to_string(samples) + " samples)");
+    throw InputError("--lags: '" + spec + "': " + number_text(seconds) +
+                     " s is not a whole number of samples at " + number_text(sample_rate_hz) +
+                     " Hz (" + number_text(samples) + " samples)");
   }
   return static_cast<int>(rounded);
 }
