@@ -20,18 +20,30 @@ void keep_large_blocks_for_reuse() {
   mallopt(M_TRIM_THRESHOLD, 1024 * mib);
   mallopt(M_TOP_PAD, 64 * mib);
 #if defined(MADV_HUGEPAGE)
-  // Grow the heap by its 64 MiB pad now and ask for transparent huge pages on it: a 2 MiB page
-  // is faulted in once instead of 512 4 KiB pages (under THP "madvise", Debian's default; the
-  // advice is ignored where THP is off).
-  void* block = std::malloc(mib);  // from the heap's top: grows it by the pad
+  // Grow the heap by its pad now, from where the next blocks will be carved (the top), and ask
+  // for transparent huge pages on all of it: a 2 MiB page is faulted in once instead of 512 4 KiB
+  // pages (under THP "madvise", Debian's default; the advice is ignored where THP is off). The
+  // block asked for is larger than anything the start-up left at the top, so that malloc extends
+  // the break by it plus the pad.
+  constexpr std::uintptr_t huge = 2 * mib;
+  void* block = std::malloc(4 * mib);
+  if (block == nullptr) return;
   const auto low = reinterpret_cast<std::uintptr_t>(block);
   const auto high = reinterpret_cast<std::uintptr_t>(sbrk(0));
-  constexpr std::uintptr_t huge = 2 * mib;
-  const std::uintptr_t first = (low + huge - 1) & ~(huge - 1);
-  const std::uintptr_t last = high & ~(huge - 1);
-  if (block != nullptr && last > first)
-    madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+  const std::uintptr_t page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+  const std::uintptr_t from = low & ~(page - 1);
+  if (high > from) madvise(reinterpret_cast<void*>(from), high - from, MADV_HUGEPAGE);
   std::free(block);
+  // Only whole 2 MiB-aligned ranges can be huge pages: the top starts at a random place within
+  // one (address-space randomisation), and the blocks carved below the next 2 MiB boundary would
+  // be faulted in 4 KiB at a time (up to 512 faults). A spacer block up to just below that
+  // boundary is kept for the life of the program and never touched beyond its header, so the
+  // blocks after it start on huge pages.
+  const std::uintptr_t boundary = (low + huge - 1) & ~(huge - 1);
+  constexpr std::uintptr_t slack = 256;  // malloc's headers and rounding, bytes
+  static void* spacer = nullptr;
+  if (spacer == nullptr && boundary > low + slack + page && boundary <= high)
+    spacer = std::malloc(boundary - low - slack);
 #endif
 #endif
 }
