@@ -48,6 +48,12 @@ void keep_large_blocks_for_reuse() {
 #endif
 }
 
+void one_heap_for_all_threads() {
+#if defined(__GLIBC__)
+  mallopt(M_ARENA_MAX, 1);
+#endif
+}
+
 std::string tunables_with_huge_pages(const char* current) {
   const std::string value = current == nullptr ? "" : current;
   // Entries are NAME=VALUE separated by ':'; one setting the tunable already wins.

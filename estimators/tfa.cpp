@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
-#include <stdexcept>
 #include <string>
 
 #include "data/error.hpp"
@@ -74,7 +73,6 @@ Eigen::MatrixXd pre_onset_noise(const data::Trial& trial, const TfaOptions& opti
   return noise.transpose() * noise / double(noise.rows() - 1);
 }
 
-#ifndef STIFFID_TFA_SPECTROGRAM_ONLY
 // Stages 2-5 of the modal method: the fit, K and C by the inverse eigenproblem, and the same
 // per-time quantities as the spectrogram pipeline's modal analysis (omega, alpha and their
 // derivatives come from the fitted splines, not from Savitzky-Golay smoothing).
@@ -175,7 +173,6 @@ void identify_modal(TfaResult& r, const TfaOptions& options) {
   r.force = normalized_force(r.ridges, m);
   r.status = fit.status;
 }
-#endif
 
 }  // namespace
 
@@ -192,12 +189,7 @@ TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
     // The fit takes the noise covariance from before the onset (after its low-pass filter).
     deviation.lead_s = std::max(deviation.lead_s, options.modes.noise_window_s + 0.1);
     r.deviation = joint_deviation(trial, deviation, baseline);
-#ifdef STIFFID_TFA_SPECTROGRAM_ONLY
-    // The front end (apps/front/main.cpp) runs only --method spectrogram itself.
-    throw std::logic_error("tfa: the modal method is not built into this program");
-#else
     identify_modal(r, options);
-#endif
     return r;
   }
   r.deviation = joint_deviation(trial, options.deviation, baseline);

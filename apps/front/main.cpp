@@ -1,11 +1,11 @@
-// `stiffid`: the program users call. It runs `frf`, `irf` and `tfa --method spectrogram` itself
-// and hands every other command line (the other subcommands, the modal tfa, --help, --version,
-// mistakes) unchanged to `stiffid-full`, the
-// program next to it with every subcommand (apps/main.cpp), by exec: same arguments, same
-// standard streams, same exit code. Linked with the estimators alone (no Ceres, Ipopt, NLopt, MPI
-// or SQLite), this program loads 8 shared libraries instead of 38 and starts in ~2 ms instead of
-// ~8 ms, which is a few per cent of a 10-minute trial's frf or irf and a tenth of a spectrogram
-// tfa. Its tfa is apps/cmd_tfa.cpp and estimators/tfa.cpp built without the modal method.
+// `stiffid`: the program users call. It runs `frf`, `irf` and `tfa` itself and hands every other
+// command line (the other subcommands, --help, --version, mistakes) unchanged to `stiffid-full`,
+// the program next to it with every subcommand (apps/main.cpp), by exec: same arguments, same
+// standard streams, same exit code. Linked with the estimators alone (no Ipopt, NLopt, MPI or
+// SQLite; Ceres's own dependencies linked statically where Debian ships their archives,
+// CMakeLists.txt), this program loads ~11 shared libraries instead of 38 and starts in a few ms
+// instead of ~17 ms: a few per cent of a 10-minute trial's frf or irf, and a sixth of a modal tfa
+// of a 5 s trial, which used to pay for both programs' start (docs/tfa_modal.md, "Speed").
 #include <unistd.h>
 
 #include <cerrno>
@@ -51,17 +51,18 @@ bool spectrogram_tfa(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   const std::string command = argc > 1 ? argv[1] : "";
-  if (command == "frf" || command == "irf") {
+  if (command == "frf" || command == "irf" || command == "tfa") {
     stiffid::data::keep_large_blocks_for_reuse();
-    return stiffid::apps::run_cli(argc, argv, [](CLI::App& app) {
-      stiffid::apps::add_frf_command(app);
-      stiffid::apps::add_irf_command(app);
+    // The modal fit's two damping models run on two threads; one heap for both keeps the second
+    // thread's blocks on huge pages too (the spectrogram's FFT tasks, many small blocks on every
+    // thread, keep a heap per thread).
+    if (command == "tfa" && !spectrogram_tfa(argc, argv)) stiffid::data::one_heap_for_all_threads();
+    // Only the command asked for is registered: tfa's ~40 options cost ~1 ms to set up.
+    return stiffid::apps::run_cli(argc, argv, [&command](CLI::App& app) {
+      if (command == "frf") stiffid::apps::add_frf_command(app);
+      if (command == "irf") stiffid::apps::add_irf_command(app);
+      if (command == "tfa") stiffid::apps::add_tfa_command(app);
     });
-  }
-  if (spectrogram_tfa(argc, argv)) {
-    stiffid::data::keep_large_blocks_for_reuse();
-    return stiffid::apps::run_cli(argc, argv,
-                                  [](CLI::App& app) { stiffid::apps::add_tfa_command(app); });
   }
   const std::string full = full_program(argv[0]);
   stiffid::data::ask_huge_pages_after_exec();  // for the threads' heaps too (data/allocator.hpp)
