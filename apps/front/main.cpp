@@ -3,9 +3,10 @@
 // the program next to it with every subcommand (apps/main.cpp), by exec: same arguments, same
 // standard streams, same exit code. Linked with the estimators alone (no Ipopt, NLopt, MPI or
 // SQLite; Ceres's own dependencies linked statically where Debian ships their archives,
-// CMakeLists.txt), this program loads ~11 shared libraries instead of 38 and starts in a few ms
-// instead of ~17 ms: a few per cent of a 10-minute trial's frf or irf, and a sixth of a modal tfa
-// of a 5 s trial, which used to pay for both programs' start (docs/tfa_modal.md, "Speed").
+// CMakeLists.txt), this program loads 12 shared libraries where stiffid-full loads 22 (38 before
+// the static link) and starts in ~9 ms (`frf --help`) where stiffid-full takes ~17: a few per
+// cent of a 10-minute trial's frf or irf. The modal tfa of a 5 s trial, which used to pay for
+// both programs' start, takes a quarter less (docs/tfa_modal.md, "Speed").
 #include <unistd.h>
 
 #include <cerrno>
@@ -57,7 +58,7 @@ int main(int argc, char** argv) {
     // thread's blocks on huge pages too (the spectrogram's FFT tasks, many small blocks on every
     // thread, keep a heap per thread).
     if (command == "tfa" && !spectrogram_tfa(argc, argv)) stiffid::data::one_heap_for_all_threads();
-    // Only the command asked for is registered: tfa's ~40 options cost ~1 ms to set up.
+    // Only the command asked for is registered (the others' options are not set up).
     return stiffid::apps::run_cli(argc, argv, [&command](CLI::App& app) {
       if (command == "frf") stiffid::apps::add_frf_command(app);
       if (command == "irf") stiffid::apps::add_irf_command(app);
