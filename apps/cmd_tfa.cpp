@@ -230,9 +230,13 @@ void run(TfaCommandOptions cli) {
     baseline = std::make_unique<data::Trial>(data::read_trial_csv(cli.baseline_path, csv));
   }
   const estimators::TfaResult r = estimators::identify_tfa(trial, o, baseline.get());
-  // Shown before a failure too: a movement trial without --baseline is a likely cause.
+  // Shown before a failure too: a movement trial without --baseline, a short noise window or the
+  // modal fit's own warning may explain it.
   if (!r.deviation.warning.empty()) {
     std::cerr << "stiffid tfa: warning: " << trial.source << ": " << r.deviation.warning << '\n';
+  }
+  for (const std::string& warning : {r.noise_warning, r.modes.warning}) {
+    if (!warning.empty()) std::cerr << "stiffid tfa: warning: " << warning << '\n';
   }
   if (!r.status.ok) throw NumericalFailure(trial.source + ": " + r.status.message);
 
@@ -329,9 +333,7 @@ void run(TfaCommandOptions cli) {
     // Index j of the mode whose quadratic distortion was fitted (-1: none), as in f_hz[j].
     out["second_order_mode"] = r.modes.second_order_mode;
     for (const std::string& warning : {r.noise_warning, r.modes.warning}) {
-      if (warning.empty()) continue;
-      std::cerr << "stiffid tfa: warning: " << warning << '\n';
-      out["warnings"].push_back(warning);
+      if (!warning.empty()) out["warnings"].push_back(warning);
     }
     const Eigen::MatrixXd& cov = r.modes.noise_covariance;
     nlohmann::json noise = nlohmann::json::array();

@@ -529,4 +529,29 @@ BOOST_AUTO_TEST_CASE(a_short_noise_window_is_reported_as_used) {
   const nlohmann::json out = read_json(held);
   BOOST_CHECK_EQUAL(out["options"]["noise_window_s"].get<double>(), 0.4);
   BOOST_CHECK(out["warnings"] == nlohmann::json::array());
+
+  // The angles held at their first values: no response, the fit fails (exit 1, no output), and
+  // the short window's warning is printed before the failure.
+  const fs::path flat = scratch("flat.csv");
+  {
+    std::ifstream in(kTrial);
+    std::ofstream to(flat);
+    std::string line, first;
+    std::getline(in, line);
+    to << line << '\n';
+    while (std::getline(in, line)) {
+      const std::size_t time_end = line.find(','), angles_end = line.find(',', time_end + 1);
+      const std::size_t forces = line.find(',', angles_end + 1);
+      if (first.empty()) first = line.substr(time_end, forces - time_end);
+      to << line.substr(0, time_end) << first << line.substr(forces) << '\n';
+    }
+  }
+  const fs::path failed = scratch("flat.json");
+  std::string err;
+  BOOST_CHECK_EQUAL(run(flat.string() + " --angles th1,th2 --onset 2.5 -o " + failed.string(), err),
+                    1);
+  BOOST_CHECK(!fs::exists(failed));
+  const std::size_t warned = err.find("0.45 s before the onset"), failure = err.find("failed");
+  BOOST_CHECK_MESSAGE(
+      warned != std::string::npos && failure != std::string::npos && warned < failure, err);
 }
