@@ -2053,7 +2053,10 @@ DampedModesResult fit_one(const Start& from, const DampedModesOptions& options) 
   result.start = pencils.global;
   if (!result.start.status.ok) {
     result.status = Status::failure(
-        "modal fit: no start: " + result.start.status.message +
+        "modal fit: no start: " + std::to_string(options.modes) +
+        " damped oscillations not found in the free response (is the onset the pulse's, and do "
+        "the channels respond to it?): " +
+        result.start.status.message +
         (options.real_terms < 0
              ? " (also with 1 to " + std::to_string(max_real_terms(options)) + " real terms)"
              : ""));

@@ -530,8 +530,8 @@ BOOST_AUTO_TEST_CASE(a_short_noise_window_is_reported_as_used) {
   BOOST_CHECK_EQUAL(out["options"]["noise_window_s"].get<double>(), 0.4);
   BOOST_CHECK(out["warnings"] == nlohmann::json::array());
 
-  // The angles held at their first values: no response, the fit fails (exit 1, no output), and
-  // the short window's warning is printed before the failure.
+  // The angles held at their first values: no response, the fit fails (exit 1, no output, a
+  // message that says what is missing), and the short window's warning is printed before it.
   const fs::path flat = scratch("flat.csv");
   {
     std::ifstream in(kTrial);
@@ -551,6 +551,8 @@ BOOST_AUTO_TEST_CASE(a_short_noise_window_is_reported_as_used) {
   BOOST_CHECK_EQUAL(run(flat.string() + " --angles th1,th2 --onset 2.5 -o " + failed.string(), err),
                     1);
   BOOST_CHECK(!fs::exists(failed));
+  BOOST_CHECK_MESSAGE(
+      err.find("2 damped oscillations not found in the free response") != std::string::npos, err);
   const std::size_t warned = err.find("0.45 s before the onset"), failure = err.find("failed");
   BOOST_CHECK_MESSAGE(
       warned != std::string::npos && failure != std::string::npos && warned < failure, err);
