@@ -230,21 +230,23 @@ void run(TfaCommandOptions cli) {
     baseline = std::make_unique<data::Trial>(data::read_trial_csv(cli.baseline_path, csv));
   }
   const estimators::TfaResult r = estimators::identify_tfa(trial, o, baseline.get());
-  // Shown before a failure too: a movement trial without --baseline, a short noise window or the
-  // modal fit's own warning may explain it.
-  if (!r.deviation.warning.empty()) {
-    std::cerr << "stiffid tfa: warning: " << trial.source << ": " << r.deviation.warning << '\n';
-  }
-  for (const std::string& warning : {r.noise_warning, r.modes.warning}) {
-    if (!warning.empty()) std::cerr << "stiffid tfa: warning: " << warning << '\n';
+  // Every warning of the run (the deviation's about the trial file; the modal method's about its
+  // noise window and its fit), shown before a failure too: a movement trial without --baseline, a
+  // short noise window or the modal fit's own warning may explain it.
+  nlohmann::json warnings = nlohmann::json::array();
+  for (const std::string* warning : {&r.deviation.warning, &r.noise_warning, &r.modes.warning}) {
+    if (warning->empty()) continue;
+    const bool about_file = warning == &r.deviation.warning;
+    std::cerr << "stiffid tfa: warning: " << (about_file ? trial.source + ": " : "") << *warning
+              << '\n';
+    warnings.push_back(*warning);
   }
   if (!r.status.ok) throw NumericalFailure(trial.source + ": " + r.status.message);
 
   nlohmann::json out;
   out["method"] = estimators::to_string(o.method);
-  // Every warning of the run, as printed on stderr ([] when none): for scripts that read the JSON.
-  out["warnings"] = nlohmann::json::array();
-  if (!r.deviation.warning.empty()) out["warnings"].push_back(r.deviation.warning);
+  // As printed on stderr ([] when none): for scripts that read the JSON.
+  out["warnings"] = std::move(warnings);
   out["options"] = {{"angles", o.deviation.angle_channels},
                     {"forces", o.deviation.force_channels},
                     {"onset", cli.onset},
@@ -332,9 +334,6 @@ void run(TfaCommandOptions cli) {
     out["offset_rad"] = series(r.modes.offset_rad);
     // Index j of the mode whose quadratic distortion was fitted (-1: none), as in f_hz[j].
     out["second_order_mode"] = r.modes.second_order_mode;
-    for (const std::string& warning : {r.noise_warning, r.modes.warning}) {
-      if (!warning.empty()) out["warnings"].push_back(warning);
-    }
     const Eigen::MatrixXd& cov = r.modes.noise_covariance;
     nlohmann::json noise = nlohmann::json::array();
     for (Eigen::Index i = 0; i < cov.rows(); ++i) {

@@ -3,12 +3,14 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <boost/test/unit_test.hpp>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -52,6 +54,37 @@ fs::path scratch(const std::string& name) {
   static const stiffid::test::TempFolder folder("tfa_cli");
   fs::remove(folder.path / name);
   return folder.path / name;
+}
+
+using LineEdit = std::function<std::string(const std::string&)>;
+
+// A copy `name` of the fixture trial (header "t,th1[rad],th2[rad],fx[N],fy[N]") in the scratch
+// folder: its header through `header`, every data row through `row`; a row that `row` turns into
+// an empty string is dropped.
+fs::path fixture_copy(
+    const std::string& name, const LineEdit& row,
+    const LineEdit& header = [](const std::string& line) { return line; }) {
+  const fs::path path = scratch(name);
+  std::ifstream in(kTrial);
+  std::ofstream out(path);
+  std::string line;
+  std::getline(in, line);
+  BOOST_REQUIRE_EQUAL(line, "t,th1[rad],th2[rad],fx[N],fy[N]");
+  out << header(line) << '\n';
+  while (std::getline(in, line)) {
+    const std::string edited = row(line);
+    if (!edited.empty()) out << edited << '\n';
+  }
+  return path;
+}
+
+// The fields of a fixture row: t, th1, th2, fx, fy.
+std::array<double, 5> fields(const std::string& line) {
+  std::array<double, 5> v{};
+  std::istringstream in(line);
+  char comma = 0;
+  in >> v[0] >> comma >> v[1] >> comma >> v[2] >> comma >> v[3] >> comma >> v[4];
+  return v;
 }
 
 }  // namespace
@@ -306,16 +339,13 @@ BOOST_AUTO_TEST_CASE(auto_onset_defaults_to_the_fx_fy_channels) {
   BOOST_CHECK_CLOSE(j["onset_s"].get<double>(), 2.5, 1e-6);
   BOOST_CHECK(j["options"]["forces"] == nlohmann::json({"fx", "fy"}));
   // A trial without them: exit 2, no output. The same record with the force columns dropped.
-  const fs::path angles_only = scratch("angles_only.csv"), none = scratch("none.json");
-  {
-    std::ifstream trial(kTrial);
-    std::ofstream copy(angles_only);
-    for (std::string line; std::getline(trial, line);) {
-      std::size_t cut = line.find(',');  // t,th1,th2 kept
-      for (int field = 0; field < 2; ++field) cut = line.find(',', cut + 1);
-      copy << line.substr(0, cut) << '\n';
-    }
-  }
+  const LineEdit first_three = [](const std::string& line) {  // t,th1,th2 kept
+    std::size_t cut = line.find(',');
+    for (int field = 0; field < 2; ++field) cut = line.find(',', cut + 1);
+    return line.substr(0, cut);
+  };
+  const fs::path angles_only = fixture_copy("angles_only.csv", first_three, first_three);
+  const fs::path none = scratch("none.json");
   BOOST_CHECK_EQUAL(run(angles_only.string() +
                         " --angles th1,th2 --onset 2.5 --method spectrogram -o " + none.string()),
                     0);  // the copy is a valid trial: only the onset detection needs forces
@@ -330,28 +360,24 @@ BOOST_AUTO_TEST_CASE(angles_recorded_in_degrees_are_converted_other_units_refuse
   // [deg], [mrad]): the same K and amplitudes as from rad, to the 15 digits written (K depends on
   // the ratio of the channels, so a unit left unconverted changes it); an angle channel in [m]
   // is refused with exit 2, no output.
-  const fs::path deg = scratch("deg.csv"), metres = scratch("metres.csv");
-  {
-    std::ifstream trial(kTrial);
-    std::ofstream d(deg), m(metres);
-    std::string line;
-    std::getline(trial, line);
-    BOOST_REQUIRE_EQUAL(line, "t,th1[rad],th2[rad],fx[N],fy[N]");
-    d << "t,th1[deg],th2[mrad],fx[N],fy[N]\n";
-    m << "t,th1[m],th2[rad],fx[N],fy[N]\n";
-    d << std::setprecision(15);
-    while (std::getline(trial, line)) {
-      m << line << '\n';
-      std::istringstream fields(line);
-      std::string t, th1, th2, rest;
-      std::getline(fields, t, ',');
-      std::getline(fields, th1, ',');
-      std::getline(fields, th2, ',');
-      std::getline(fields, rest);
-      d << t << ',' << std::stod(th1) * 180.0 / M_PI << ',' << std::stod(th2) * 1e3 << ',' << rest
-        << '\n';
-    }
-  }
+  const fs::path deg = fixture_copy(
+      "deg.csv",
+      [](const std::string& line) {
+        std::istringstream in(line);
+        std::string t, th1, th2, rest;
+        std::getline(in, t, ',');
+        std::getline(in, th1, ',');
+        std::getline(in, th2, ',');
+        std::getline(in, rest);
+        std::ostringstream row;
+        row << std::setprecision(15) << t << ',' << std::stod(th1) * 180.0 / M_PI << ','
+            << std::stod(th2) * 1e3 << ',' << rest;
+        return row.str();
+      },
+      [](const std::string&) { return std::string("t,th1[deg],th2[mrad],fx[N],fy[N]"); });
+  const fs::path metres = fixture_copy(
+      "metres.csv", [](const std::string& line) { return line; },
+      [](const std::string&) { return std::string("t,th1[m],th2[rad],fx[N],fy[N]"); });
   const fs::path from_rad = scratch("from_rad.json"), from_deg = scratch("from_deg.json");
   const std::string args = " --angles th1,th2 --onset 2.5 --method spectrogram -o ";
   BOOST_REQUIRE_EQUAL(run(kTrial + args + from_rad.string()), 0);
@@ -402,13 +428,10 @@ BOOST_AUTO_TEST_CASE(subject_from_arm_parameters_or_a_simulation_spec) {
 BOOST_AUTO_TEST_CASE(a_trial_without_time_column_needs_fs) {
   // The fixture (2 kHz, t from 2.0 s) without its t column: with --fs 2000 time starts at 0, so the
   // onset is 0.5 s and the same K comes out 2 s earlier; without --fs, exit 2 and no output.
-  const fs::path untimed = scratch("untimed.csv");
-  {
-    std::ifstream trial(kTrial);
-    std::ofstream copy(untimed);
-    for (std::string line; std::getline(trial, line);)
-      copy << line.substr(line.find(',') + 1) << '\n';
-  }
+  const LineEdit without_t = [](const std::string& line) {
+    return line.substr(line.find(',') + 1);
+  };
+  const fs::path untimed = fixture_copy("untimed.csv", without_t, without_t);
   const std::string args = " --angles th1,th2 --method spectrogram -o ";
   const fs::path a = scratch("timed.json"), b = scratch("untimed.json");
   BOOST_REQUIRE_EQUAL(run(kTrial + args + a.string() + " --onset 2.5"), 0);
@@ -461,22 +484,13 @@ BOOST_AUTO_TEST_CASE(warnings_are_listed_in_the_json_as_on_stderr) {
       run(kTrial + " --angles th1,th2 --onset 2.5 --method spectrogram -o " + rest.string()), 0);
   BOOST_CHECK(read_json(rest)["warnings"] == nlohmann::json::array());
 
-  const fs::path moving = scratch("moving.csv");
-  {
-    std::ifstream in(kTrial);
-    std::ofstream out(moving);
-    std::string line;
-    std::getline(in, line);
-    BOOST_REQUIRE_EQUAL(line, "t,th1[rad],th2[rad],fx[N],fy[N]");
-    out << line << '\n' << std::setprecision(17);
-    double t = 0, th1 = 0, th2 = 0, fx = 0, fy = 0;
-    char comma = 0;
-    while (std::getline(in, line)) {
-      std::istringstream row(line);
-      row >> t >> comma >> th1 >> comma >> th2 >> comma >> fx >> comma >> fy;
-      out << t << ',' << th1 << ',' << th2 + 0.2 * t << ',' << fx << ',' << fy << '\n';
-    }
-  }
+  const fs::path moving = fixture_copy("moving.csv", [](const std::string& line) {
+    const auto [t, th1, th2, fx, fy] = fields(line);
+    std::ostringstream row;
+    row << std::setprecision(17) << t << ',' << th1 << ',' << th2 + 0.2 * t << ',' << fx << ','
+        << fy;
+    return row.str();
+  });
   const fs::path json = scratch("moving.json");
   std::string err;
   BOOST_REQUIRE_EQUAL(
@@ -498,16 +512,9 @@ BOOST_AUTO_TEST_CASE(warnings_are_listed_in_the_json_as_on_stderr) {
 // used. The fixture starts at 2.0 s (0.5 s before the onset, less 0.05 s for the filter: 0.45 s);
 // cut at 2.25 s it holds 0.2 s; a window it holds (--noise-window-s 0.4) gives no warning.
 BOOST_AUTO_TEST_CASE(a_short_noise_window_is_reported_as_used) {
-  const fs::path cut = scratch("cut.csv");
-  {
-    std::ifstream in(kTrial);
-    std::ofstream out(cut);
-    std::string line;
-    std::getline(in, line);
-    out << line << '\n';
-    while (std::getline(in, line))
-      if (std::stod(line.substr(0, line.find(','))) >= 2.25 - 1e-9) out << line << '\n';
-  }
+  const fs::path cut = fixture_copy("cut.csv", [](const std::string& line) {
+    return fields(line)[0] >= 2.25 - 1e-9 ? line : std::string();
+  });
   for (const auto& [trial, used] : {std::pair{kTrial, 0.45}, std::pair{cut.string(), 0.2}}) {
     const fs::path json = scratch("short.json");
     std::string err;
@@ -532,20 +539,13 @@ BOOST_AUTO_TEST_CASE(a_short_noise_window_is_reported_as_used) {
 
   // The angles held at their first values: no response, the fit fails (exit 1, no output, a
   // message that says what is missing), and the short window's warning is printed before it.
-  const fs::path flat = scratch("flat.csv");
-  {
-    std::ifstream in(kTrial);
-    std::ofstream to(flat);
-    std::string line, first;
-    std::getline(in, line);
-    to << line << '\n';
-    while (std::getline(in, line)) {
-      const std::size_t time_end = line.find(','), angles_end = line.find(',', time_end + 1);
-      const std::size_t forces = line.find(',', angles_end + 1);
-      if (first.empty()) first = line.substr(time_end, forces - time_end);
-      to << line.substr(0, time_end) << first << line.substr(forces) << '\n';
-    }
-  }
+  std::string first;  // ",th1,th2" of the first row
+  const fs::path flat = fixture_copy("flat.csv", [&first](const std::string& line) {
+    const std::size_t time_end = line.find(','), angles_end = line.find(',', time_end + 1);
+    const std::size_t forces = line.find(',', angles_end + 1);
+    if (first.empty()) first = line.substr(time_end, forces - time_end);
+    return line.substr(0, time_end) + first + line.substr(forces);
+  });
   const fs::path failed = scratch("flat.json");
   std::string err;
   BOOST_CHECK_EQUAL(run(flat.string() + " --angles th1,th2 --onset 2.5 -o " + failed.string(), err),
