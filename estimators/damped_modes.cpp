@@ -99,7 +99,7 @@ Prepared prepare(const Eigen::Ref<const Eigen::MatrixXd>& x, double rate_hz, dou
       o.decimate_hz > 0.0 ? std::max(1, static_cast<int>(std::lround(rate_hz / o.decimate_hz)))
                           : 1);
   const int d = decimation.factor;
-  const int h = d > 1 ? decimation.half_taps_per_factor * d : 0;
+  const int h = filter_reach_samples(decimation);
   const int onset = static_cast<int>(std::ceil((onset_s - start_s) * rate_hz - 1e-9));
   if (onset < 0 || onset >= s)
     throw InputError("modal fit: onset " + number_text(onset_s) + " s is outside the record [" +

@@ -15,6 +15,10 @@ DecimationOptions short_filter_decimation(int factor) {
   return options;
 }
 
+int filter_reach_samples(const DecimationOptions& options) {
+  return options.factor > 1 ? options.half_taps_per_factor * options.factor : 0;
+}
+
 DecimationResult decimate(const Eigen::Ref<const Eigen::MatrixXd>& x, double sample_rate_hz,
                           const DecimationOptions& options) {
   if (options.factor < 1 || !(sample_rate_hz > 0.0) || options.half_taps_per_factor < 1) {
@@ -29,7 +33,7 @@ DecimationResult decimate(const Eigen::Ref<const Eigen::MatrixXd>& x, double sam
     r.samples = x;
     return r;
   }
-  const int half = options.half_taps_per_factor * d;
+  const int half = filter_reach_samples(options);
   const double fc = options.cutoff_fraction * 0.5 / d;  // cycles per input sample
   Eigen::VectorXd h(2 * half + 1);
   const double i0 = boost::math::cyl_bessel_i(0, options.kaiser_beta);

@@ -26,6 +26,11 @@ struct DecimationResult {
 /// the pulse for all but the first 25 ms of the free response.
 DecimationOptions short_filter_decimation(int factor);
 
+/// How far the filter of `options` reaches on either side of an output sample, in input samples:
+/// half_taps_per_factor x D, or 0 for D = 1 (no filter). Samples within this reach of a record's
+/// end, or of a pulse, are filtered with what lies beyond it.
+int filter_reach_samples(const DecimationOptions& options);
+
 /// Low-pass filters each column with a symmetric (zero-phase) FIR of unit DC gain and keeps every
 /// D-th sample. In the pass band (up to about half the cut-off) the gain is 1 within 1e-4. D = 1
 /// returns the input. Throws InputError on D < 1 or a rate that is not positive.

@@ -62,7 +62,7 @@ Eigen::MatrixXd pre_onset_noise(const data::Trial& trial, const TfaOptions& opti
   const int used = std::min(onset - static_cast<int>(std::lround(0.05 * fs)),
                             static_cast<int>(std::lround(window_s * fs)));
   const int d = decimation.factor;
-  const int h = d > 1 ? decimation.half_taps_per_factor * d : 0;
+  const int h = filter_reach_samples(decimation);
   if (used <= 2 * h) return {};
   const DecimationResult x =
       decimate(before.deviation_rad.middleRows(onset - used, used), fs, decimation);
@@ -221,7 +221,7 @@ TfaResult identify_tfa(const data::Trial& trial, const TfaOptions& options,
   signal.real = real.samples;
   if (dev.hilbert_rad.size() > 0) signal.imag = decimate(dev.hilbert_rad, fs, dec_options).samples;
   const double dt = 1.0 / real.sample_rate_hz;
-  const double filter_s = d > 1 ? dec_options.half_taps_per_factor * d / fs : 0.0;
+  const double filter_s = filter_reach_samples(dec_options) / fs;
   signal.begin =
       static_cast<int>(std::ceil((dev.free_start_s + filter_s - dev.start_time_s) / dt - 1e-9));
   signal.end = static_cast<int>(real.samples.rows()) - real.edge_samples;

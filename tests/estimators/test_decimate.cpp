@@ -106,3 +106,29 @@ BOOST_AUTO_TEST_CASE(factor_one_returns_the_input_and_bad_options_are_refused) {
   options.half_taps_per_factor = 0;
   BOOST_CHECK_THROW(decimate(x, 100.0, options), stiffid::InputError);
 }
+
+// filter_reach_samples: an impulse one input sample beyond the reach of output sample i leaves it
+// exactly 0, one sample inside moves it; the short filter reaches 5 D input samples (25 ms at
+// 4 kHz -> 200 Hz), the default 12 D, and D = 1 filters nothing.
+BOOST_AUTO_TEST_CASE(the_filter_reaches_as_far_as_filter_reach_samples_says) {
+  using stiffid::estimators::filter_reach_samples;
+  DecimationOptions plain;
+  BOOST_CHECK_EQUAL(filter_reach_samples(plain), 0);
+  plain.factor = 4;
+  BOOST_CHECK_EQUAL(filter_reach_samples(plain), 48);
+  BOOST_CHECK_EQUAL(filter_reach_samples(short_filter_decimation(20)), 100);
+  BOOST_CHECK_EQUAL(filter_reach_samples(short_filter_decimation(1)), 0);
+  for (const DecimationOptions& options : {plain, short_filter_decimation(20)}) {
+    const int d = options.factor, reach = filter_reach_samples(options);
+    const int i = reach / d + 2, centre = i * d;  // output sample i sits at input sample i D
+    for (const int offset : {-reach - 1, reach + 1, -(reach - 1), reach - 1}) {
+      Eigen::MatrixXd x = Eigen::MatrixXd::Zero(2 * centre, 1);
+      x(centre + offset, 0) = 1.0;
+      const double y = decimate(x, 1000.0, options).samples(i, 0);
+      if (std::abs(offset) > reach)
+        BOOST_CHECK_EQUAL(y, 0.0);
+      else
+        BOOST_CHECK_MESSAGE(y != 0.0, "D " << d << ", offset " << offset);  // a tap near the end
+    }
+  }
+}
