@@ -66,7 +66,7 @@ Eigen::MatrixXd pre_onset_noise(const data::Trial& trial, const TfaOptions& opti
   if (used <= 2 * h) return {};
   const DecimationResult x =
       decimate(before.deviation_rad.middleRows(onset - used, used), fs, decimation);
-  const int first = (h + d - 1) / d, last = (used - 1 - h) / d;
+  const int first = x.edge_samples, last = (used - 1 - h) / d;
   if (last - first + 1 < 8 * c) return {};
   Eigen::MatrixXd noise = x.samples.middleRows(first, last - first + 1);
   noise.rowwise() -= noise.colwise().mean();
